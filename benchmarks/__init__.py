@@ -1,0 +1,1 @@
+"""Benchmark suite: trackers behind one interface, the A/R/ARscore protocol, tables, performance scripts."""

@@ -1,0 +1,58 @@
+"""The `dvsot` command line: dispatches to the sub-command modules in `dvsot.commands`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from dvsot import __version__
+from dvsot.errors import UserError
+
+# name -> module; the module's docstring's first line is the help text.
+COMMANDS: dict[str, str] = {
+    "generate": "dvsot.commands.generate",
+    "simulate": "dvsot.commands.simulate",
+    "info": "dvsot.commands.info",
+    "train": "dvsot.commands.train",
+    "bench": "dvsot.commands.bench",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, one sub-parser per command module that is present."""
+    parser = argparse.ArgumentParser(prog="dvsot", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"dvsot {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, module_name in COMMANDS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:
+                continue  # command not built yet
+            raise
+        doc = (module.__doc__ or "").strip().splitlines()
+        p = sub.add_parser(name, help=doc[0] if doc else None, description=(module.__doc__ or None),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; bad input prints one line and returns 2."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except UserError as exc:
+        print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"dvsot {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
