@@ -247,11 +247,30 @@ class ClusterSet:
             idx = np.argmax(inside, axis=1)
         return np.where(anyin, idx, -1)
 
+    def _trajectories(self, X, Y, T, A):
+        """Centres (x, y), last-update times and event counts of every cluster before each row, given
+        the assignment A; row k (one past the last) is the state after the whole chunk."""
+        C = self.n
+        m = self.p.mixing_factor
+        a = 1.0 - m
+        onehot = A[:, None] == np.arange(C)[None, :]
+        cnt = np.cumsum(onehot, axis=0)                       # events of each cluster up to and incl. row
+        n_before = np.vstack([np.zeros((1, C), np.int64), cnt])
+        # c_n = a^n c_0 + m sum_j a^(n-j) e_j, evaluated for all rows at once with cumulative sums
+        w = np.where(onehot, a ** (-cnt.astype(float)), 0.0)
+        sx = np.vstack([np.zeros((1, C)), np.cumsum(w * X[:, None], axis=0)])
+        sy = np.vstack([np.zeros((1, C)), np.cumsum(w * Y[:, None], axis=0)])
+        an = a ** n_before.astype(float)
+        LX = an * (self.loc[None, :, 0] + m * sx)
+        LY = an * (self.loc[None, :, 1] + m * sy)
+        tm = np.where(onehot, T[:, None], _NEVER)
+        LU = np.maximum(np.vstack([self.last_update[None, :], np.maximum.accumulate(tm, axis=0)]),
+                        self.last_update[None, :])
+        return LX, LY, LU, n_before
+
     def _run(self, x: np.ndarray, y: np.ndarray, t: np.ndarray) -> None:
         """Process events between two list updates, speculatively in chunks (exact, see module doc)."""
         p = self.p
-        m = p.mixing_factor
-        a = 1.0 - m
         tau = p.cluster_mass_decay_tau_us
         n = len(t)
         i = 0
@@ -279,21 +298,10 @@ class ClusterSet:
                     k = int(free[0])
                     X, Y, T, A = X[:k], Y[:k], T[:k], A[:k]
             k = len(T)
-            onehot = A[:, None] == np.arange(C)[None, :]
-            cnt = np.cumsum(onehot, axis=0)                       # events of each cluster up to and incl. row
-            n_before = np.vstack([np.zeros((1, C), np.int64), cnt])
-            w = np.where(onehot, a ** (-cnt.astype(float)), 0.0)
-            sx = np.vstack([np.zeros((1, C)), np.cumsum(w * X[:, None], axis=0)])
-            sy = np.vstack([np.zeros((1, C)), np.cumsum(w * Y[:, None], axis=0)])
-            an = a ** n_before.astype(float)
-            LX = an * (self.loc[None, :, 0] + m * sx)             # centre before row r (row k: after all)
-            LY = an * (self.loc[None, :, 1] + m * sy)
-            tm = np.where(onehot, T[:, None], _NEVER)
-            LU = np.maximum(np.vstack([self.last_update[None, :], np.maximum.accumulate(tm, axis=0)]),
-                            self.last_update[None, :])
+            LX, LY, LU, n_before = self._trajectories(X, Y, T, A)
             A2 = self._assign(X, Y, T, LX[:-1], LY[:-1], LU[:-1])
             bad = np.flatnonzero(A2 != A)
-            ok = int(bad[0]) if bad.size else k
+            ok = int(bad[0]) if bad.size else k   # rows [0, ok) are verified exact; row 0 always is
             # commit rows [0, ok)
             sel = A[:ok]
             rows = np.arange(ok)
