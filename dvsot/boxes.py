@@ -18,3 +18,47 @@ def iou_xywh(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(union > 0, inter / union, 0.0)
     return np.nan_to_num(out, nan=0.0)
+
+
+def interpolate_boxes(t_samples: np.ndarray, xywh: np.ndarray, t_query: np.ndarray) -> np.ndarray:
+    """Boxes (pixels) at query times (us), linear per coordinate between samples; NaN if a neighbour is NaN or outside the track."""
+    ts = np.asarray(t_samples, dtype=np.float64)
+    boxes = np.asarray(xywh, dtype=np.float64).reshape(-1, 4)
+    tq = np.atleast_1d(np.asarray(t_query, dtype=np.float64))
+    out = np.full((tq.size, 4), np.nan)
+    if ts.size == 0:
+        return out
+    hi = np.searchsorted(ts, tq, side="left")  # first sample with t >= query
+    inside = (tq >= ts[0]) & (tq <= ts[-1])
+    hi = np.clip(hi, 0, ts.size - 1)
+    lo = np.where(ts[hi] == tq, hi, np.maximum(hi - 1, 0))
+    span = ts[hi] - ts[lo]
+    w = np.divide(tq - ts[lo], span, out=np.zeros_like(tq), where=span > 0)[:, None]
+    # NaN in either neighbour propagates through the blend, as it should (target out of view).
+    blend = boxes[lo] * (1.0 - w) + boxes[hi] * w
+    exact = (span == 0)[:, None]
+    blend = np.where(exact, boxes[lo], blend)
+    out[inside] = blend[inside]
+    return out
+
+
+def box_from_mask(mask: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+    """The upright rectangle circumscribing every contour of mask > threshold, xywh float32 pixels; NaN if empty."""
+    import cv2
+
+    binary = (np.asarray(mask) > threshold).astype(np.uint8)
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return np.full(4, np.nan, np.float32)
+    x, y, w, h = cv2.boundingRect(np.concatenate(contours))
+    return np.array([x, y, w, h], np.float32)
+
+
+def clip_box(xywh: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The part of a box inside a width x height image (pixels); NaN when nothing remains."""
+    b = np.asarray(xywh, dtype=np.float32)
+    x0, y0 = np.clip(b[0], 0, width), np.clip(b[1], 0, height)
+    x1, y1 = np.clip(b[0] + b[2], 0, width), np.clip(b[1] + b[3], 0, height)
+    if not (x1 > x0 and y1 > y0):
+        return np.full(4, np.nan, np.float32)
+    return np.array([x0, y0, x1 - x0, y1 - y0], np.float32)
