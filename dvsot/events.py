@@ -176,7 +176,7 @@ class EventSimulator:
         noise = self._noise(t0, t1)
         self._last, self._buf = L1, self._last
         self._t_prev = t1
-        return _sorted_batch(signal, noise, self.width)
+        return _sorted_batch(signal, noise, self.width, t0, t1)
 
     def _crossings(self, L1: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, ...]:
         """Pixel index, time (float us) and polarity of every emitted crossing; updates ref and last-event time."""
@@ -194,11 +194,8 @@ class EventSimulator:
         k_lo = np.maximum(1.0, np.floor(u0 / c) + 1.0)
         k_hi = np.floor(u1 / c)
         n = np.maximum(k_hi - k_lo + 1.0, 0.0).astype(np.int64)
-        ok = n > 0
-        idx, l0, l1, pol, c, u0, u1, k_lo, k_hi, n = (a[ok] for a in (idx, l0, l1, pol, c, u0, u1, k_lo, k_hi, n))
-        if idx.size == 0:
-            return _empty_crossings()
-        ref[idx] += pol * k_hi * c  # dropped (refractory) crossings still move the reference
+        # dropped (refractory) crossings still move the reference; n == 0 leaves it where it is
+        ref[idx] += np.where(n > 0, pol * k_hi * c, 0.0)
         span = (t1 - t0) / (u1 - u0)
         t_first = t0 + (k_lo * c - u0) * span
         dt = c * span  # time between consecutive crossings of one pixel
@@ -209,20 +206,21 @@ class EventSimulator:
             m = np.maximum(np.ceil(R / dt - 1e-9), 1.0)
             n_keep = np.where(j0 < n, (n - 1 - j0) // m + 1, 0).astype(np.int64)
         else:
-            j0 = np.zeros(idx.size)
-            m = np.ones(idx.size)
-            n_keep = n
+            j0, m, n_keep = 0.0, 1.0, n
         total = int(n_keep.sum())
         if total == 0:
             return _empty_crossings()
-        start = np.cumsum(n_keep) - n_keep
-        rank = np.arange(total, dtype=np.int64) - np.repeat(start, n_keep)
-        j = np.repeat(j0, n_keep) + rank * np.repeat(m, n_keep)
-        times = np.repeat(t_first, n_keep) + j * np.repeat(dt, n_keep)
-        emitted = n_keep > 0
-        last_j = j0 + (n_keep - 1) * m
-        self._last_event[idx[emitted]] = (t_first + last_j * dt)[emitted]
-        return np.repeat(idx, n_keep), times, np.repeat(pol > 0, n_keep)
+        owner = np.repeat(np.arange(idx.size), n_keep)
+        rank = np.arange(total, dtype=np.float64) - (np.cumsum(n_keep) - n_keep)[owner]
+        if R > 0:
+            j = j0[owner] + rank * m[owner]
+            last_j = j0 + (n_keep - 1) * m
+            emitted = n_keep > 0
+            self._last_event[idx[emitted]] = (t_first + last_j * dt)[emitted]
+        else:
+            j = rank
+        times = t_first[owner] + j * dt[owner]
+        return idx[owner], times, pos[owner]
 
     def _noise(self, t0: int, t1: int) -> tuple[np.ndarray, ...]:
         """Shot-noise and leak events (pixel index, float us time, polarity) in (t0, t1]."""
@@ -250,16 +248,23 @@ def _empty_crossings() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.empty(0, np.int64), np.empty(0, np.float64), np.empty(0, bool)
 
 
-def _sorted_batch(signal: tuple[np.ndarray, ...], noise: tuple[np.ndarray, ...], width: int) -> EventBatch:
-    """Signal and noise crossings as one EventBatch sorted by (integer time, pixel), stable."""
-    pix = np.concatenate([signal[0], noise[0]])
+def _sorted_batch(signal: tuple[np.ndarray, ...], noise: tuple[np.ndarray, ...], width: int, t0: int,
+                  t1: int) -> EventBatch:
+    """Signal and noise crossings as one EventBatch sorted by (integer time, pixel, crossing order)."""
+    pix = np.concatenate([signal[0], noise[0]]) if noise[0].size else signal[0]
     if pix.size == 0:
         return EventBatch.empty()
-    t = np.rint(np.concatenate([signal[1], noise[1]])).astype(np.int64)
-    pol = np.concatenate([signal[2], noise[2]])
-    flag = np.concatenate([np.ones(signal[0].size, bool), np.zeros(noise[0].size, bool)])
-    npix = int(pix.max()) + 1
-    order = np.argsort(t * npix + pix, kind="stable")
-    pix, t = pix[order], t[order]
-    return EventBatch((pix % width).astype(np.uint16), (pix // width).astype(np.uint16), t,
+    times = np.concatenate([signal[1], noise[1]]) if noise[0].size else signal[1]
+    pol = np.concatenate([signal[2], noise[2]]) if noise[0].size else signal[2]
+    flag = np.ones(pix.size, bool)
+    flag[signal[0].size:] = False
+    t_rel = np.rint(times - t0).astype(np.int64)
+    if noise[0].size == 0 and t1 - t0 < 1 << 16:
+        # signal crossings come out in pixel order already, so a stable sort on the time offset alone
+        # gives (time, pixel, crossing) order; on uint16 keys numpy's stable sort is a radix sort.
+        order = np.argsort(t_rel.astype(np.uint16), kind="stable")
+    else:
+        order = np.argsort(t_rel * (int(pix.max()) + 1) + pix, kind="stable")
+    pix = pix[order]
+    return EventBatch((pix % width).astype(np.uint16), (pix // width).astype(np.uint16), t_rel[order] + t0,
                       pol[order].astype(np.uint8), flag[order])
