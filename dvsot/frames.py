@@ -1,0 +1,160 @@
+"""Frame sources for `dvsot simulate`: image directories, video files and .npy stacks, as linear luma frames.
+
+8-bit images are read as I/255 and 16-bit as I/65535 (ESIM reads 8-bit frames as I/255 too);
+``srgb=True`` first undoes the sRGB transfer curve. Float images (EXR, .npy) are taken as linear
+intensity. Colour becomes luma with Rec. 709 weights (applied after linearisation when asked).
+Frames are produced lazily, one at a time.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")  # must be set before cv2 is imported
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from dvsot.errors import UserError
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
+VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
+_LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)  # Rec. 709, in OpenCV's B, G, R order
+
+
+def srgb_to_linear(v: np.ndarray) -> np.ndarray:
+    """Undo the sRGB transfer curve on values in [0, 1]."""
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def to_linear_luma(img: np.ndarray, srgb: bool = False) -> np.ndarray:
+    """An image as float32 linear luma: integer types scaled to [0, 1], colour (BGR[A]) weighted by Rec. 709."""
+    if img.dtype == np.uint8:
+        v = img.astype(np.float32) / 255.0
+    elif img.dtype == np.uint16:
+        v = img.astype(np.float32) / 65535.0
+    elif img.dtype.kind == "f":
+        v = img.astype(np.float32)
+    else:
+        raise UserError(f"unsupported pixel type {img.dtype}")
+    if srgb:
+        v = srgb_to_linear(np.clip(v, 0.0, 1.0))
+    if v.ndim == 3:
+        v = v[..., :3] @ _LUMA_BGR if v.shape[2] >= 3 else v[..., 0]
+    return np.ascontiguousarray(v, dtype=np.float32)
+
+
+@dataclass
+class FrameSource:
+    """A lazily read sequence of frames: count, size, native rate (fps, or None) and the frames themselves."""
+
+    path: Path
+    count: int
+    width: int
+    height: int
+    fps: float | None
+    srgb: bool = False
+
+    def frames(self) -> Iterator[np.ndarray]:
+        """Yield (height, width) float32 linear-luma frames in order."""
+        if self.path.is_dir():
+            yield from self._images()
+        elif self.path.suffix.lower() == ".npy":
+            stack = np.load(self.path, mmap_mode="r")
+            for i in range(stack.shape[0]):
+                yield np.asarray(stack[i], dtype=np.float32)
+        else:
+            yield from self._video()
+
+    def _images(self) -> Iterator[np.ndarray]:
+        for p in _image_files(self.path):
+            img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            if img is None:
+                raise UserError(f"{p}: cannot read image")
+            frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
+            if frame.shape != (self.height, self.width):
+                raise UserError(f"{p}: image is {frame.shape[1]}x{frame.shape[0]}, the first was {self.width}x{self.height}")
+            yield frame
+
+    def _video(self) -> Iterator[np.ndarray]:
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            for _ in range(self.count):
+                ok, img = cap.read()
+                if not ok:
+                    break
+                yield to_linear_luma(img, self.srgb)
+        finally:
+            cap.release()
+
+
+def _image_files(directory: Path) -> list[Path]:
+    return sorted(p for p in directory.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
+    """Open a directory of images, a video file or a .npy (T, H, W) stack; bad input raises UserError."""
+    p = Path(path)
+    if not p.exists():
+        raise UserError(f"{p}: no such file or directory")
+    if p.is_dir():
+        files = _image_files(p)
+        if not files:
+            raise UserError(f"{p}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in this directory")
+        first = cv2.imread(str(files[0]), cv2.IMREAD_UNCHANGED)
+        if first is None:
+            raise UserError(f"{files[0]}: cannot read image")
+        h, w = first.shape[:2]
+        return FrameSource(p, len(files), w, h, None, srgb)
+    if p.suffix.lower() == ".npy":
+        try:
+            stack = np.load(p, mmap_mode="r")
+        except (ValueError, OSError) as exc:
+            raise UserError(f"{p}: not a readable .npy file ({exc})") from None
+        if stack.ndim != 3 or stack.dtype.kind not in "fiu":
+            raise UserError(f"{p}: expected a (T, H, W) array of real numbers, got {stack.dtype} {stack.shape}")
+        return FrameSource(p, int(stack.shape[0]), int(stack.shape[2]), int(stack.shape[1]), None, srgb)
+    if p.suffix.lower() in VIDEO_SUFFIXES:
+        cap = cv2.VideoCapture(str(p))
+        try:
+            if not cap.isOpened():
+                raise UserError(f"{p}: cannot open video")
+            count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+            fps = float(cap.get(cv2.CAP_PROP_FPS)) or None
+        finally:
+            cap.release()
+        if count <= 0 or w <= 0:
+            raise UserError(f"{p}: video has no frames")
+        return FrameSource(p, count, w, h, fps, srgb)
+    raise UserError(f"{p}: not an image directory, a video ({', '.join(sorted(VIDEO_SUFFIXES))}) or a .npy stack")
+
+
+def read_timestamps(path: str | os.PathLike, count: int) -> np.ndarray:
+    """Timestamps in microseconds from a file of seconds, one per line (as ESIM reads them); checked."""
+    p = Path(path)
+    try:
+        lines = [ln.split("#")[0].strip() for ln in p.read_text().splitlines()]
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read timestamps ({exc.strerror})") from None
+    values = []
+    for no, ln in enumerate(lines, start=1):
+        if not ln:
+            continue
+        try:
+            values.append(float(ln.split()[0]))
+        except ValueError:
+            raise UserError(f"{p}:{no}: not a number of seconds: {ln!r}") from None
+    t = np.rint(np.array(values, np.float64) * 1e6).astype(np.int64)
+    if len(t) != count:
+        raise UserError(f"{p}: {len(t)} timestamps for {count} frames")
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        raise UserError(f"{p}: timestamps must increase (frame {bad[0] + 1} at {values[bad[0] + 1]} s does not)")
+    if t[0] < 0:
+        raise UserError(f"{p}: timestamps must be >= 0")
+    return t
