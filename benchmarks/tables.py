@@ -1,0 +1,167 @@
+"""Results tables in the layout of the paper's Table 2 (A and R per sequence, ARscore beneath, an "all" column).
+
+One summary feeds every format: terminal text, CSV (one row per tracker and sequence), JSON,
+Markdown and LaTeX, written side by side by `write_tables`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+from benchmarks.metrics import pooled, scores
+from benchmarks.protocol import SequenceResult
+
+ALL = "all"
+
+
+def summarise(results: list[SequenceResult]) -> dict:
+    """{tracker: {sequence|'all': {A, R, ARscore, segments, failures, inits, segments_per_s, energy, error}}}."""
+    out: dict[str, dict[str, dict]] = {}
+    for res in results:
+        s = scores(res.iou)
+        out.setdefault(res.tracker, {})[res.sequence] = {
+            "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore, "segments": s.segments,
+            "failures": s.failures, "inits": len(res.init_segments), "segments_per_s": res.segments_per_s,
+            "energy": res.energy, "error": res.error}
+    for tracker, per_seq in out.items():
+        ok = [r for r in results if r.tracker == tracker and r.error is None]
+        s = pooled([r.iou for r in ok])
+        seconds = sum(r.tracker_seconds for r in ok)
+        tracked = sum(r.tracked_segments for r in ok)
+        energies = [r.energy for r in ok if r.energy]
+        energy = None
+        if energies:
+            keys = set.intersection(*(set(e) for e in energies))
+            energy = {k: sum(e[k] for e in energies) / len(energies) for k in sorted(keys)}
+        per_seq[ALL] = {"A": s.accuracy, "R": s.robustness, "ARscore": s.arscore, "segments": s.segments,
+                        "failures": s.failures, "inits": sum(len(r.init_segments) for r in ok),
+                        "segments_per_s": tracked / seconds if seconds > 0 else float("nan"),
+                        "energy": energy, "error": None if ok else "all sequences failed"}
+    return out
+
+
+def _sequences(summary: dict) -> list[str]:
+    seqs: list[str] = []
+    for per_seq in summary.values():
+        seqs += [s for s in per_seq if s != ALL and s not in seqs]
+    return seqs + [ALL]
+
+
+def _f(v: float | None) -> str:
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.3f}"
+
+
+def terminal(summary: dict) -> str:
+    """A fixed-width table: per tracker an 'A R' row and an ARscore row, plus speed."""
+    seqs = _sequences(summary)
+    name_w = max([7] + [len(t) for t in summary])
+    col_w = max([13] + [len(s) for s in seqs])
+    lines = [" " * name_w + " | " + " | ".join(s.center(col_w) for s in seqs) + " | seg/s",
+             " " * name_w + " | " + " | ".join("A      R".center(col_w) for _ in seqs) + " |"]
+    lines.append("-" * len(lines[0]))
+    for tracker, per_seq in summary.items():
+        ar_row, score_row = [], []
+        for s in seqs:
+            cell = per_seq.get(s)
+            if cell is None:
+                ar_row.append("".center(col_w))
+                score_row.append("".center(col_w))
+            elif cell["error"]:
+                ar_row.append("failed".center(col_w))
+                score_row.append("".center(col_w))
+            else:
+                ar_row.append(f"{_f(cell['A'])}  {_f(cell['R'])}".center(col_w))
+                score_row.append(_f(cell["ARscore"]).center(col_w))
+        speed = per_seq[ALL]["segments_per_s"]
+        lines.append(tracker.ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:.1f}")
+        lines.append(" " * name_w + " | " + " | ".join(score_row) + " |")
+    return "\n".join(lines)
+
+
+def to_csv(summary: dict) -> str:
+    """One row per tracker and sequence (including 'all')."""
+    buf = io.StringIO()
+    fields = ["tracker", "sequence", "A", "R", "ARscore", "segments", "failures", "inits", "segments_per_s",
+              "energy_pj", "error"]
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for tracker, per_seq in summary.items():
+        for seq in _sequences(summary):
+            if seq not in per_seq:
+                continue
+            c = per_seq[seq]
+            energy = (c["energy"] or {}).get("energy_pj")
+            w.writerow({"tracker": tracker, "sequence": seq, "A": _f(c["A"]), "R": _f(c["R"]),
+                        "ARscore": _f(c["ARscore"]), "segments": c["segments"], "failures": c["failures"],
+                        "inits": c["inits"], "segments_per_s": f"{c['segments_per_s']:.2f}",
+                        "energy_pj": "" if energy is None else f"{energy:.4g}", "error": c["error"] or ""})
+    return buf.getvalue()
+
+
+def to_json(summary: dict) -> str:
+    """The summary as JSON (NaN written as null)."""
+    def clean(v):
+        if isinstance(v, float) and math.isnan(v):
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        return v
+    return json.dumps(clean(summary), indent=2)
+
+
+def to_markdown(summary: dict) -> str:
+    """A Markdown table: each cell 'A / R / **ARscore**'."""
+    seqs = _sequences(summary)
+    lines = ["| tracker | " + " | ".join(seqs) + " | seg/s |", "|---|" + "---|" * (len(seqs) + 1)]
+    for tracker, per_seq in summary.items():
+        cells = []
+        for s in seqs:
+            c = per_seq.get(s)
+            cells.append("" if c is None else "failed" if c["error"] else
+                         f"{_f(c['A'])} / {_f(c['R'])} / **{_f(c['ARscore'])}**")
+        lines.append(f"| {tracker} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} |")
+    return "\n".join(lines) + "\n\nEach cell: A / R / **ARscore** (b = 2).\n"
+
+
+def to_latex(summary: dict) -> str:
+    """A LaTeX tabular in the paper's layout: A and R side by side, ARscore centred beneath."""
+    seqs = _sequences(summary)
+    esc = lambda s: s.replace("_", r"\_")  # noqa: E731
+    lines = [r"\begin{tabular}{l" + "cc" * len(seqs) + "}", r"\hline",
+             "Method & " + " & ".join(rf"\multicolumn{{2}}{{c}}{{{esc(s)}}}" for s in seqs) + r" \\",
+             " & " + " & ".join("A & R" for _ in seqs) + r" \\", " & " + " & ".join(
+                 r"\multicolumn{2}{c}{ARscore}" for _ in seqs) + r" \\", r"\hline"]
+    for tracker, per_seq in summary.items():
+        row1, row2 = [], []
+        for s in seqs:
+            c = per_seq.get(s)
+            if c is None or c["error"]:
+                row1.append(r"\multicolumn{2}{c}{" + ("failed" if c else "") + "}")
+                row2.append(r"\multicolumn{2}{c}{}")
+            else:
+                row1.append(f"{_f(c['A'])} & {_f(c['R'])}")
+                row2.append(rf"\multicolumn{{2}}{{c}}{{{_f(c['ARscore'])}}}")
+        lines.append(esc(tracker) + " & " + " & ".join(row1) + r" \\")
+        lines.append(" & " + " & ".join(row2) + r" \\")
+    lines += [r"\hline", r"\end{tabular}"]
+    return "\n".join(lines) + "\n"
+
+
+def write_tables(summary: dict, out_dir: str | Path) -> dict[str, Path]:
+    """Write results.{csv,json,md,tex} and table.txt into out_dir; returns the paths by format."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"txt": ("table.txt", terminal(summary) + "\n"), "csv": ("results.csv", to_csv(summary)),
+             "json": ("results.json", to_json(summary)), "md": ("results.md", to_markdown(summary)),
+             "tex": ("results.tex", to_latex(summary))}
+    paths = {}
+    for fmt, (name, text) in files.items():
+        tmp = out / f".{name}.tmp"
+        tmp.write_text(text)
+        tmp.replace(out / name)
+        paths[fmt] = out / name
+    return paths
