@@ -196,7 +196,8 @@ class EventSimulator:
         n = np.maximum(k_hi - k_lo + 1.0, 0.0).astype(np.int64)
         # dropped (refractory) crossings still move the reference; n == 0 leaves it where it is
         ref[idx] += np.where(n > 0, pol * k_hi * c, 0.0)
-        span = (t1 - t0) / (u1 - u0)
+        with np.errstate(divide="ignore", invalid="ignore"):  # u1 == u0 only where n == 0 (rounding at a level)
+            span = (t1 - t0) / (u1 - u0)
         t_first = t0 + (k_lo * c - u0) * span
         dt = c * span  # time between consecutive crossings of one pixel
         R = self.params.refractory_us

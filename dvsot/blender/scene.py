@@ -1,0 +1,340 @@
+"""Everything that touches bpy: build a scene from a SceneConfig, pose it at a time, render intensity and masks.
+
+One render call gives three images, read back from a multilayer EXR written under /dev/shm (the
+render result cannot be read from memory in background mode):
+
+* view layer "main": the whole scene; Combined -> linear-light luma (Rec. 709), Object Index ->
+  the *visible* target mask (occluders in front hide it);
+* view layer "mask": the target alone (every other collection excluded); its Object Index is the
+  *amodal* target mask, the paper's "target rendered separately".
+
+Cycles runs on the CPU with a fixed seed (no animated seed) and no denoising, so a static pixel gets
+exactly the same value in every frame and produces no false events.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from dvsot.config import Background, Material, SceneConfig, SceneObject, Texture
+from dvsot.errors import UserError
+from dvsot.shapes import mesh_for
+from dvsot.trajectory import pose_and_scale
+
+TARGET_INDEX = 1
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+# Presets of look-alike backgrounds: (base texture, node settings, output, default colour ramp).
+_PRESETS: dict[str, tuple[str, dict, str, list]] = {
+    "galaxy": ("noise", {"Scale": 3.0, "Detail": 8.0, "Distortion": 0.6}, "Fac",
+               [(0.0, 0.0, 0.01), (0.05, 0.02, 0.12), (0.35, 0.15, 0.5), (0.9, 0.85, 1.0)]),
+    "mountain": ("noise", {"Scale": 2.0, "Detail": 10.0, "Distortion": 0.3}, "Fac",
+                 [(0.03, 0.08, 0.02), (0.2, 0.16, 0.08), (0.45, 0.45, 0.45), (0.95, 0.95, 0.97)]),
+    "city": ("brick", {"Scale": 8.0, "Mortar Size": 0.03}, "Color",
+             [(0.05, 0.05, 0.06), (0.9, 0.75, 0.35)]),
+    "sea": ("wave", {"Scale": 3.0, "Distortion": 6.0, "Detail": 6.0}, "Fac",
+            [(0.0, 0.03, 0.12), (0.05, 0.25, 0.45), (0.7, 0.9, 1.0)]),
+    "window": ("brick", {"Scale": 4.0, "Mortar Size": 0.12}, "Fac",
+               [(0.8, 0.8, 0.75), (0.1, 0.15, 0.25)]),
+    "flower": ("voronoi", {"Scale": 9.0}, "Color",
+               [(0.9, 0.2, 0.45), (0.95, 0.85, 0.2), (0.15, 0.45, 0.1)]),
+}
+_NODE_TYPES = {"noise": "ShaderNodeTexNoise", "voronoi": "ShaderNodeTexVoronoi", "wave": "ShaderNodeTexWave",
+               "brick": "ShaderNodeTexBrick", "checker": "ShaderNodeTexChecker", "magic": "ShaderNodeTexMagic",
+               "gradient": "ShaderNodeTexGradient"}
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Silence Blender's per-frame prints on the C-level stdout."""
+    import sys
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(devnull)
+        os.close(saved)
+
+
+def _set_input(node, name: str, value) -> None:
+    if name in node.inputs:
+        node.inputs[name].default_value = value
+
+
+def _texture_colour(nt, tex: Texture, coords_socket):
+    """Build texture nodes; returns the socket carrying its linear RGB colour."""
+    kind, params, output, colors = tex.type, {}, "Fac", None
+    if kind in _PRESETS:
+        kind, params, output, colors = _PRESETS[kind]
+        params = dict(params)
+        params["Scale"] = params.get("Scale", 5.0) * tex.scale / 5.0
+    colors = tex.colors or colors or [(0.05, 0.05, 0.05), (0.9, 0.9, 0.9)]
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    nt.links.new(coords_socket, mapping.inputs["Vector"])
+    mapping.inputs["Location"].default_value = (tex.seed * 0.137, tex.seed * 0.291, tex.seed * 0.419)
+    if kind == "image":
+        node = nt.nodes.new("ShaderNodeTexImage")
+        try:
+            node.image = bpy.data.images.load(str(tex.path))
+        except RuntimeError as exc:
+            raise UserError(f"{tex.path}: cannot read image texture ({exc})") from None
+        node.extension = "REPEAT"
+        mapping.inputs["Scale"].default_value = (tex.scale / 5.0,) * 3
+        nt.links.new(mapping.outputs["Vector"], node.inputs["Vector"])
+        return node.outputs["Color"]
+    node = nt.nodes.new(_NODE_TYPES[kind])
+    nt.links.new(mapping.outputs["Vector"], node.inputs["Vector"])
+    if kind == "noise":
+        node.noise_dimensions = "4D"
+        _set_input(node, "W", tex.seed)
+    _set_input(node, "Scale", params.get("Scale", tex.scale))
+    _set_input(node, "Detail", params.get("Detail", tex.detail))
+    _set_input(node, "Distortion", params.get("Distortion", tex.distortion))
+    if "Mortar Size" in params:
+        _set_input(node, "Mortar Size", params["Mortar Size"])
+    if kind == "brick":
+        _set_input(node, "Color1", (*colors[-1], 1.0))
+        _set_input(node, "Color2", (*colors[0], 1.0))
+        _set_input(node, "Mortar", (*colors[0], 1.0))
+        if output == "Color":
+            return node.outputs["Color"]
+    if output == "Color" and kind == "voronoi":
+        # voronoi cell colours are random; pull them into the palette with a ramp on their brightness
+        gray = nt.nodes.new("ShaderNodeRGBToBW")
+        nt.links.new(node.outputs["Color"], gray.inputs["Color"])
+        src = gray.outputs["Val"]
+    else:
+        src = node.outputs[output] if output in node.outputs else node.outputs[0]
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    elems = ramp.color_ramp.elements
+    while len(elems) < len(colors):
+        elems.new(0.5)
+    for i, c in enumerate(colors):
+        elems[i].position = i / (len(colors) - 1)
+        elems[i].color = (*c, 1.0)
+    nt.links.new(src, ramp.inputs["Fac"])
+    out = ramp.outputs["Color"]
+    if tex.type == "galaxy":  # add sparse bright stars on top of the nebula
+        stars = nt.nodes.new("ShaderNodeTexVoronoi")
+        nt.links.new(mapping.outputs["Vector"], stars.inputs["Vector"])
+        stars.inputs["Scale"].default_value = 60.0 * tex.scale / 5.0
+        less = nt.nodes.new("ShaderNodeMath")
+        less.operation = "LESS_THAN"
+        nt.links.new(stars.outputs["Distance"], less.inputs[0])
+        less.inputs[1].default_value = 0.06
+        mix = nt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.blend_type = "ADD"
+        mix.inputs["Factor"].default_value = 1.0
+        nt.links.new(out, mix.inputs["A"])
+        nt.links.new(less.outputs[0], mix.inputs["B"])
+        out = mix.outputs["Result"]
+    return out
+
+
+def _material(name: str, m: Material) -> bpy.types.Material:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = next(n for n in nt.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Base Color"].default_value = (*m.color, 1.0)
+    bsdf.inputs["Roughness"].default_value = m.roughness
+    colour = None
+    if m.texture is not None:
+        coords = nt.nodes.new("ShaderNodeTexCoord")
+        colour = _texture_colour(nt, m.texture, coords.outputs["Generated"])
+        nt.links.new(colour, bsdf.inputs["Base Color"])
+    if m.emission > 0:
+        bsdf.inputs["Emission Strength"].default_value = m.emission
+        if colour is not None:
+            nt.links.new(colour, bsdf.inputs["Emission Color"])
+        else:
+            bsdf.inputs["Emission Color"].default_value = (*m.color, 1.0)
+    return mat
+
+
+def _mesh_object(name: str, obj: SceneObject, collection) -> bpy.types.Object:
+    verts, faces = mesh_for(obj.shape, obj.mesh)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata((verts * obj.size_m).tolist(), [], faces)
+    me.validate()
+    me.update()
+    if obj.shape in {"sphere", "ball", "cylinder", "torus", "bottle", "cat"}:
+        with contextlib.suppress(AttributeError):
+            me.shade_smooth()
+    me.materials.append(_material(name + "_mat", obj.material))
+    ob = bpy.data.objects.new(name, me)
+    collection.objects.link(ob)
+    return ob
+
+
+class BlenderScene:
+    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask)."""
+
+    def __init__(self, cfg: SceneConfig) -> None:
+        self.cfg = cfg
+        self.width, self.height = cfg.sensor.width, cfg.sensor.height
+        self._tmp = Path(tempfile.mkdtemp(prefix="dvsot-render-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
+        with _quiet_stdout():
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+        self.scene = bpy.context.scene
+        self._setup_render()
+        self._build()
+
+    def close(self) -> None:
+        """Remove the temporary render directory."""
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def __enter__(self) -> "BlenderScene":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _setup_render(self) -> None:
+        sc, r = self.scene, self.cfg.render
+        sc.render.engine = "CYCLES"
+        sc.cycles.device = "CPU"
+        sc.cycles.samples = r.samples
+        sc.cycles.use_denoising = False
+        sc.cycles.use_adaptive_sampling = False
+        sc.cycles.seed = self.cfg.derived_seed("cycles") % (2**31)
+        sc.cycles.use_animated_seed = False
+        sc.cycles.max_bounces = r.max_bounces
+        for attr in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+                     "transparent_max_bounces"):
+            setattr(sc.cycles, attr, min(getattr(sc.cycles, attr), max(r.max_bounces, 1)))
+        sc.render.use_persistent_data = r.persistent_data
+        sc.render.resolution_x, sc.render.resolution_y = self.width, self.height
+        sc.render.resolution_percentage = 100
+        sc.render.pixel_aspect_x = sc.render.pixel_aspect_y = 1.0
+        if r.threads:
+            sc.render.threads_mode = "FIXED"
+            sc.render.threads = r.threads
+        sc.view_settings.view_transform = "Standard"
+        sc.view_settings.look = "None"
+        sc.view_settings.exposure = 0.0
+        sc.view_settings.gamma = 1.0
+        sc.render.film_transparent = False
+        sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+        sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+        sc.render.image_settings.color_depth = "32"
+        sc.render.image_settings.exr_codec = "NONE"
+
+    def _build(self) -> None:
+        cfg, sc = self.cfg, self.scene
+        root = sc.collection
+        self.collections = {}
+        for name in ("target", "others", "background"):
+            col = bpy.data.collections.new(name)
+            root.children.link(col)
+            self.collections[name] = col
+        cam_data = bpy.data.cameras.new("camera")
+        k = cfg.sensor.intrinsics()
+        cam_data.sensor_fit = "HORIZONTAL" if self.width >= self.height else "VERTICAL"
+        cam_data.sensor_width = cfg.sensor.sensor_width_mm
+        cam_data.sensor_height = cfg.sensor.sensor_width_mm
+        cam_data.lens = k.fx * cfg.sensor.sensor_width_mm / max(self.width, self.height)
+        cam_data.shift_x = -(k.cx - self.width / 2) / max(self.width, self.height)
+        cam_data.shift_y = (k.cy - self.height / 2) / max(self.width, self.height)
+        cam_data.clip_start, cam_data.clip_end = 0.01, 1e5
+        self.camera = bpy.data.objects.new("camera", cam_data)
+        root.objects.link(self.camera)
+        sc.camera = self.camera
+        self.target = _mesh_object("target", cfg.target, self.collections["target"])
+        self.target.pass_index = TARGET_INDEX
+        self.others = [(_mesh_object(o.name or f"{o.role}_{i}", o, self.collections["others"]), o)
+                       for i, o in enumerate(cfg.objects)]
+        self._background(cfg.background)
+        for i, light in enumerate(cfg.lights):
+            data = bpy.data.lights.new(f"light_{i}", light.type.upper())
+            data.energy = light.strength
+            data.color = light.color
+            if light.type == "area":
+                data.size = light.size_m
+            ob = bpy.data.objects.new(f"light_{i}", data)
+            ob.location = light.location
+            ob.rotation_euler = tuple(np.radians(light.rotation_deg))
+            self.collections["background"].objects.link(ob)
+        world = bpy.data.worlds.new("world")
+        sc.world = world
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            world.use_nodes = True
+        bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+        bg.inputs["Color"].default_value = (*cfg.world.color, 1.0)
+        bg.inputs["Strength"].default_value = cfg.world.strength
+        if cfg.background.kind == "environment":
+            nt = world.node_tree
+            coords = nt.nodes.new("ShaderNodeTexCoord")
+            colour = _texture_colour(nt, cfg.background.material.texture or Texture(type="noise"),
+                                     coords.outputs["Generated"])
+            nt.links.new(colour, bg.inputs["Color"])
+        main = sc.view_layers[0]
+        main.name = "main"
+        main.use_pass_object_index = True
+        mask = sc.view_layers.new("mask")
+        mask.use_pass_object_index = True
+        for name in ("others", "background"):
+            mask.layer_collection.children[name].exclude = True
+        mask.use_pass_combined = False
+        self.set_time(0.0)
+
+    def _background(self, bg: Background) -> None:
+        if bg.kind != "plane":
+            return
+        plane = SceneObject(shape="plane", size_m=bg.size_m, material=bg.material,
+                            trajectory={"keyframes": [{"t": 0, "location": bg.location, "rotation_deg": bg.rotation_deg}],
+                                        "interpolation": "linear"})
+        self.background_plane = _mesh_object("background", plane, self.collections["background"])
+        m, _ = pose_and_scale(plane.trajectory, 0.0)
+        self.background_plane.matrix_world = m.T.tolist()
+
+    def set_time(self, t: float) -> None:
+        """Pose camera and objects at time t (seconds)."""
+        cfg = self.cfg
+        m, _ = pose_and_scale(cfg.camera, t, cfg.derived_seed("camera_shake"))
+        self.camera.matrix_world = m.T.tolist()
+        for ob, spec in [(self.target, cfg.target)] + self.others:
+            m, s = pose_and_scale(spec.trajectory, t, cfg.derived_seed("shake:" + ob.name))
+            m[:3, :3] = m[:3, :3] * s
+            ob.matrix_world = m.T.tolist()
+
+    def render(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(linear luma float32 HxW, amodal target mask bool HxW, visible target mask bool HxW) at t seconds."""
+        import OpenEXR
+
+        self.set_time(t)
+        path = self._tmp / "frame.exr"
+        self.scene.render.filepath = str(path)
+        with _quiet_stdout():
+            result = bpy.ops.render.render(write_still=True)
+        if "FINISHED" not in result or not path.is_file():
+            raise RuntimeError(f"Blender render failed at t={t:.6f} s")
+        try:
+            with OpenEXR.File(str(path)) as f:
+                channels = {}
+                for part in f.parts:
+                    channels.update(part.channels)
+        finally:
+            path.unlink(missing_ok=True)
+        rgba = channels["main.Combined"].pixels
+        luma = rgba[..., :3] @ _LUMA
+        visible = np.rint(channels["main.Object Index.X"].pixels) == TARGET_INDEX
+        amodal = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
+        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), amodal, visible

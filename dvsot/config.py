@@ -1,0 +1,347 @@
+"""The scene file: a typed, validated description of one labelled event sequence (see blender_scenes/README.md).
+
+Units are in the field names or documented per field: seconds (`t`, `duration_s`), metres
+(locations, `size_m`), degrees (`rotation_deg`), pixels (`max_displacement_px`), millimetres
+(`focal_mm`). Unknown keys are errors. `load_scene` turns every problem into one line naming the
+file, the field, the YAML line and what is wrong.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dvsot.errors import UserError
+from dvsot.events import EventParams
+
+Vec3 = tuple[float, float, float]
+Colour = tuple[float, float, float]
+
+
+class Strict(BaseModel):
+    """Base model: unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class Sensor(Strict):
+    """Image size (pixels) and lens: focal_mm + sensor_width_mm, or fx (+ cx, cy) in pixels."""
+
+    width: int = Field(640, ge=8, le=8192)
+    height: int = Field(480, ge=8, le=8192)
+    focal_mm: float | None = Field(None, gt=0)
+    sensor_width_mm: float = Field(36.0, gt=0)
+    fx: float | None = Field(None, gt=0, description="focal length in pixels (overrides focal_mm)")
+    fy: float | None = Field(None, gt=0, description="must equal fx: square pixels")
+    cx: float | None = None
+    cy: float | None = None
+
+    @model_validator(mode="after")
+    def _lens(self) -> "Sensor":
+        if self.fy is not None and self.fx is not None and abs(self.fy - self.fx) > 1e-6 * self.fx:
+            raise ValueError("fy must equal fx (square pixels)")
+        if self.fy is not None and self.fx is None:
+            raise ValueError("fy given without fx")
+        return self
+
+    def intrinsics(self):
+        """Pixel intrinsics of this sensor."""
+        from dvsot.trajectory import Intrinsics
+
+        fx = self.fx if self.fx is not None else (self.focal_mm or 35.0) / self.sensor_width_mm * max(self.width, self.height)
+        cx = self.cx if self.cx is not None else self.width / 2
+        cy = self.cy if self.cy is not None else self.height / 2
+        return Intrinsics(fx, cx, cy, self.width, self.height)
+
+
+class Keyframe(Strict):
+    """A pose at time t (seconds): location (m), rotation (Euler XYZ degrees) or look_at (m), scale."""
+
+    t: float = Field(ge=0)
+    location: Vec3 | None = None
+    rotation_deg: Vec3 | None = None
+    look_at: Vec3 | None = None
+    scale: float | Vec3 | None = None
+
+    @model_validator(mode="after")
+    def _one_rotation(self) -> "Keyframe":
+        if self.rotation_deg is not None and self.look_at is not None:
+            raise ValueError("give rotation_deg or look_at, not both")
+        return self
+
+
+class Trajectory(Strict):
+    """Keyframes in time order; linear or smooth (Catmull-Rom) interpolation; optional hand-held shake."""
+
+    keyframes: list[Keyframe] = Field(min_length=1)
+    interpolation: Literal["linear", "smooth"] = "smooth"
+    shake_deg: float = Field(0.0, ge=0, le=20, description="hand-held rotation jitter amplitude, degrees")
+    shake_hz: float = Field(1.5, gt=0, le=50)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Trajectory":
+        ts = [k.t for k in self.keyframes]
+        if any(b <= a for a, b in zip(ts, ts[1:])):
+            raise ValueError("keyframe times must increase")
+        first = self.keyframes[0]
+        if first.location is None:
+            raise ValueError("the first keyframe needs a location")
+        kinds = {("look_at" if k.look_at is not None else "rotation") for k in self.keyframes
+                 if k.look_at is not None or k.rotation_deg is not None}
+        if len(kinds) > 1:
+            raise ValueError("use either rotation_deg or look_at in all keyframes of a trajectory")
+        return self
+
+
+TextureKind = Literal["noise", "voronoi", "wave", "brick", "checker", "magic", "gradient", "image",
+                      "galaxy", "mountain", "city", "sea", "window", "flower"]
+
+
+class Texture(Strict):
+    """A procedural texture (Blender shader nodes) or an image file, mapped through a colour ramp."""
+
+    type: TextureKind
+    scale: float = Field(5.0, gt=0)
+    detail: float = Field(4.0, ge=0, le=15)
+    distortion: float = Field(0.0, ge=0)
+    colors: list[Colour] | None = Field(None, min_length=2, description="linear RGB ramp, dark to light")
+    path: Path | None = Field(None, description="image file, for type: image")
+    seed: float = Field(0.0, description="offset of the procedural pattern (its 'W' coordinate)")
+
+    @model_validator(mode="after")
+    def _image(self) -> "Texture":
+        if (self.type == "image") != (self.path is not None):
+            raise ValueError("type: image needs path, and path is only for type: image")
+        return self
+
+
+class Material(Strict):
+    """Surface: a base colour (linear RGB), optionally a texture; emission makes it self-lit."""
+
+    color: Colour = (0.8, 0.8, 0.8)
+    texture: Texture | None = None
+    roughness: float = Field(0.6, ge=0, le=1)
+    emission: float = Field(0.0, ge=0, description="emission strength (W/m^2-ish), 0 = none")
+
+
+Shape = Literal["cube", "sphere", "ball", "cylinder", "torus", "star", "bottle", "cat", "plane"]
+
+
+class SceneObject(Strict):
+    """An object: a primitive `shape` or a `mesh` file, its size, material and trajectory."""
+
+    name: str | None = None
+    shape: Shape | None = None
+    mesh: Path | None = Field(None, description="OBJ, PLY, STL, GLB or glTF file")
+    size_m: float = Field(1.0, gt=0, description="largest extent after scaling, metres")
+    material: Material = Material()
+    trajectory: Trajectory
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "SceneObject":
+        if (self.shape is None) == (self.mesh is None):
+            raise ValueError("give exactly one of shape or mesh")
+        if self.mesh is not None and self.mesh.suffix.lower() not in {".obj", ".ply", ".stl", ".glb", ".gltf"}:
+            raise ValueError(f"mesh {self.mesh.name}: unsupported type (OBJ, PLY, STL, GLB, glTF)")
+        return self
+
+
+class Extra(SceneObject):
+    """Another object: an occluder (may pass in front of the target) or a distractor (moves elsewhere)."""
+
+    role: Literal["occluder", "distractor"] = "distractor"
+
+
+class Background(Strict):
+    """A textured plane (wall) behind the scene, or an environment (world) texture."""
+
+    kind: Literal["plane", "environment"] = "plane"
+    material: Material = Material(texture=Texture(type="noise"))
+    location: Vec3 = (0.0, 8.0, 0.0)
+    rotation_deg: Vec3 = (90.0, 0.0, 0.0)
+    size_m: float = Field(40.0, gt=0)
+
+
+class Light(Strict):
+    """A light: sun (direction from rotation), point or area (location); strength in Blender units."""
+
+    type: Literal["sun", "point", "area"] = "sun"
+    strength: float = Field(3.0, ge=0)
+    color: Colour = (1.0, 1.0, 1.0)
+    location: Vec3 = (0.0, -6.0, 6.0)
+    rotation_deg: Vec3 = (40.0, 0.0, 20.0)
+    size_m: float = Field(1.0, gt=0)
+
+
+class World(Strict):
+    """Ambient light from the world: a uniform colour and strength."""
+
+    color: Colour = (0.05, 0.05, 0.05)
+    strength: float = Field(1.0, ge=0)
+
+
+class Render(Strict):
+    """Renderer settings: Cycles on the CPU, its seed fixed so static pixels do not flicker.
+
+    Only Cycles is offered: Workbench does not show procedural shader textures, and EEVEE takes tens
+    of seconds a frame on a CPU without a GPU.
+    """
+
+    engine: Literal["cycles"] = "cycles"
+    samples: int = Field(1, ge=1, le=4096)
+    threads: int = Field(0, ge=0, description="0 = all cores")
+    max_bounces: int = Field(2, ge=0, le=32)
+    persistent_data: bool = True
+
+
+class Sampling(Strict):
+    """Motion-bounded render times: no visible point moves more than max_displacement_px between samples."""
+
+    max_displacement_px: float = Field(0.75, gt=0, le=10)
+    min_rate_hz: float = Field(100.0, gt=0)
+    max_rate_hz: float = Field(5000.0, gt=0)
+    points_per_object: int = Field(400, ge=8, le=100000)
+
+    @model_validator(mode="after")
+    def _rates(self) -> "Sampling":
+        if self.max_rate_hz < self.min_rate_hz:
+            raise ValueError("max_rate_hz must be >= min_rate_hz")
+        return self
+
+
+class SceneConfig(Strict):
+    """One scene file: everything needed to make one labelled event sequence."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_.-]+$")
+    split: Literal["train", "test", ""] = ""
+    description: str = ""
+    challenges: list[str] = []
+    seed: int = Field(0, ge=0, description="master seed: every other seed derives from it")
+    duration_s: float = Field(gt=0, le=600)
+    segment_ms: float = Field(10.0, gt=0)
+    sensor: Sensor = Sensor()
+    camera: Trajectory
+    target: SceneObject
+    objects: list[Extra] = []
+    background: Background = Background()
+    lights: list[Light] = [Light()]
+    world: World = World()
+    render: Render = Render()
+    events: dict[str, Any] = Field(default_factory=dict, description="EventParams fields")
+    sampling: Sampling = Sampling()
+
+    def event_params(self) -> EventParams:
+        """The validated event-generator parameters."""
+        return EventParams(**self.events)
+
+    def derived_seed(self, purpose: str) -> int:
+        """A seed for one purpose (events, shake, ...) derived from the master seed."""
+        digest = hashlib.sha256(f"{self.seed}:{purpose}".encode()).digest()
+        return int.from_bytes(digest[:4], "little")
+
+
+def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
+    """The 1-based YAML line of the field at loc (or of its nearest existing parent)."""
+    line = node.start_mark.line + 1 if node is not None else None
+    for key in loc:
+        if isinstance(node, yaml.MappingNode):
+            found = None
+            for k, v in node.value:
+                if k.value == key:
+                    found = (k, v)
+                    break
+            if found is None:
+                break
+            line, node = found[0].start_mark.line + 1, found[1]
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+            line = node.start_mark.line + 1
+        else:
+            break
+    return line
+
+
+def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None,
+                overrides: dict[str, Any] | None = None) -> SceneConfig:
+    """Validate scene YAML text; relative asset paths resolve against base_dir. Raises UserError."""
+    try:
+        node = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f":{mark.line + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise UserError(f"{source}{where}: YAML syntax error: {problem}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{source}: a scene file must be a mapping of fields, got {type(data).__name__}")
+    for key, value in (overrides or {}).items():
+        _set_path(data, key, value)
+    try:
+        cfg = SceneConfig.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        line = _line_of(node, loc)
+        field = ".".join(str(p) for p in loc) or "(top level)"
+        msg = err["msg"].removeprefix("Value error, ")
+        if err["type"] == "extra_forbidden":
+            msg = "unknown field"
+        raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
+    try:
+        cfg.event_params()
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = "events." + ".".join(str(p) for p in err["loc"])
+        line = _line_of(node, tuple(field.split(".")))
+        msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
+        raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
+    _check_assets(cfg, source, base_dir or Path("."), node)
+    return cfg
+
+
+def _set_path(data: dict, dotted: str, value: Any) -> None:
+    keys = dotted.split(".")
+    for k in keys[:-1]:
+        data = data.setdefault(k, {})
+    data[keys[-1]] = value
+
+
+def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) -> None:
+    """Resolve mesh and image paths against the scene file's folder; a missing file is an error."""
+    def fix(obj: Any, attr: str, loc: tuple) -> None:
+        p = getattr(obj, attr)
+        if p is None:
+            return
+        full = p if p.is_absolute() else (base / p)
+        if not full.is_file():
+            line = _line_of(node, loc)
+            raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}': "
+                            f"file not found: {full}")
+        setattr(obj, attr, full.resolve())
+
+    def material(m: Material, loc: tuple) -> None:
+        if m.texture is not None:
+            fix(m.texture, "path", loc + ("texture", "path"))
+
+    fix(cfg.target, "mesh", ("target", "mesh"))
+    material(cfg.target.material, ("target", "material"))
+    material(cfg.background.material, ("background", "material"))
+    for i, o in enumerate(cfg.objects):
+        fix(o, "mesh", ("objects", i, "mesh"))
+        material(o.material, ("objects", i, "material"))
+
+
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> SceneConfig:
+    """Read and validate a scene file; every problem raises UserError naming file, field and line."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise UserError(f"{p}: no such scene file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{p}: cannot read scene file ({exc})") from None
+    return parse_scene(text, str(p), p.parent, overrides)
