@@ -44,7 +44,7 @@ def motion_bounded_times(project: Callable[[float], np.ndarray], t_start_s: floa
             t_next = min(t + dt, t_end_s)
             q = project(t_next)
             moved = max_displacement(p, q)
-            if moved <= max_displacement_px or dt <= dt_min:
+            if moved <= max_displacement_px * (1 + 1e-9) or dt <= dt_min:
                 break
             dt = max(dt * 0.95 * max_displacement_px / moved, dt_min)
         times.append(t_next)

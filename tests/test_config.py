@@ -1,0 +1,74 @@
+"""Scene schema: shipped scenes load; each kind of bad file gives one clean line naming file, field and line."""
+
+from pathlib import Path
+
+import pytest
+
+from dvsot.config import load_scene
+from dvsot.errors import UserError
+
+SCENES = sorted(Path(__file__).resolve().parent.parent.joinpath("blender_scenes").glob("*.yaml"))
+GOOD = """name: t
+duration_s: 0.1
+camera:
+  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
+target:
+  shape: cube
+  trajectory:
+    keyframes: [{t: 0, location: [0, 0, 0]}]
+"""
+
+
+def test_every_shipped_scene_loads_with_its_split():
+    names = {load_scene(p).name: load_scene(p).split for p in SCENES}
+    assert {k for k, v in names.items() if v == "train"} == {"woman_cat", "trees_bottle", "trees_star", "woman_cube"}
+    assert {k for k, v in names.items() if v == "test"} >= {"city_cat", "city_bottle", "city_star", "sky_cube",
+                                                           "woman_ball"}
+
+
+def write(tmp_path, text, name="s.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, words", [
+    (GOOD + "  colour: red\n", ":9: field 'target.colour': unknown field"),
+    (GOOD.replace("duration_s: 0.1", "duration_s: -1"), ":2: field 'duration_s': Input should be greater than 0"),
+    (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
+    (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
+    (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
+    (GOOD.replace("shape: cube", "shape: dodecahedron"), "field 'target.shape'"),
+    (GOOD.replace("shape: cube", "mesh: missing.obj"), "file not found"),
+    (GOOD + "sampling: {min_rate_hz: 500, max_rate_hz: 100}\n", "max_rate_hz must be >= min_rate_hz"),
+    (GOOD.replace("[{t: 0, location: [0, 0, 0]}]", "[{t: 0.5, location: [0, 0, 0]}, {t: 0.1}]"),
+     "keyframe times must increase"),
+    ("name: t\n  bad: [\n", "YAML syntax error"),
+    ("- just\n- a list\n", "must be a mapping"),
+])
+def test_bad_scene_files(tmp_path, text, words):
+    p = write(tmp_path, text)
+    with pytest.raises(UserError) as info:
+        load_scene(p)
+    msg = str(info.value)
+    assert msg.startswith(str(p)) and words in msg and "\n" not in msg
+
+
+def test_missing_file_and_overrides(tmp_path):
+    with pytest.raises(UserError, match="no such scene file"):
+        load_scene(tmp_path / "nope.yaml")
+    cfg = load_scene(write(tmp_path, GOOD), {"duration_s": 0.5, "sensor.width": 64, "sensor.height": 48})
+    assert cfg.duration_s == 0.5 and (cfg.sensor.width, cfg.sensor.height) == (64, 48)
+
+
+def test_mesh_file_resolves_relative_to_the_scene(tmp_path):
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    cfg = load_scene(write(tmp_path, GOOD.replace("shape: cube", "mesh: tri.obj")))
+    assert cfg.target.mesh == (tmp_path / "tri.obj").resolve()
+    from dvsot.shapes import mesh_for
+
+    v, f = mesh_for(None, cfg.target.mesh)
+    assert len(v) == 3 and f == [[0, 1, 2]]
+    (tmp_path / "bad.obj").write_text("this is not a mesh\n")
+    with pytest.raises(UserError, match="bad.obj"):
+        mesh_for(None, tmp_path / "bad.obj")
