@@ -1,0 +1,63 @@
+"""Train SCTN on the training split of dataset files and write a checkpoint.
+
+Examples:
+  dvsot train --data data/dvsot21 -o runs/sctn.pt
+  dvsot train --data 'data/dvsot21/*.h5' --epochs 2 --loss linear --seed 3 -o runs/sctn_linear.pt
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of `dvsot train`."""
+    p.add_argument("--data", nargs="+", default=["data/dvsot21"], help="dataset files, directories or globs")
+    p.add_argument("--split", default="train", help="split attribute to train on, or 'any' (default train)")
+    p.add_argument("-o", "--output", default="runs/sctn.pt", help="checkpoint to write")
+    p.add_argument("--epochs", type=int, default=3)
+    p.add_argument("--segments-per-epoch", type=int, default=400)
+    p.add_argument("--batch-segments", type=int, default=4, help="segments per step (60 samples each)")
+    p.add_argument("--lr", type=float, default=2e-3)
+    p.add_argument("--loss", choices=["exp", "linear", "basic"], default="exp")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-minutes", type=float, default=None, help="stop after this much training time")
+    p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--quiet", action="store_true")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Train, then save the checkpoint (atomically) with its provenance."""
+    import json
+    from pathlib import Path
+
+    import torch
+
+    from dvsot.dataset import find_datasets
+    from dvsot.errors import UserError
+    from sctn.checkpoint import save_checkpoint
+    from sctn.train import TrainConfig, provenance, train
+
+    for name in ("epochs", "segments_per_epoch", "batch_segments"):
+        if getattr(args, name) < 1:
+            raise UserError(f"--{name.replace('_', '-')} must be >= 1")
+    if args.lr <= 0:
+        raise UserError("--lr must be positive")
+    out = Path(args.output)
+    if not out.parent.is_dir():
+        raise UserError(f"{out}: output directory {out.parent} does not exist")
+    files = find_datasets(args.data, split=None if args.split == "any" else args.split)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    cfg = TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
+                      batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
+                      max_minutes=args.max_minutes)
+    try:
+        model, history = train(files, cfg, progress=not args.quiet)
+    except ValueError as exc:
+        raise UserError(f"{', '.join(map(str, args.data))}: {exc}") from None
+    save_checkpoint(out, model, provenance(files, cfg, history))
+    final = history["val"][-1] if history["val"] else {}
+    print(json.dumps({"checkpoint": str(out), "steps": history["steps"], "minutes": round(history["minutes"], 2),
+                      "train_segments": history["train_segments"], "val": final}))
+    return 0

@@ -1,0 +1,63 @@
+"""Events of a segment -> SCTN input: T one-millisecond steps x 2 polarities on a 107 x 107 canvas per box.
+
+For each box, the canvas is centred on the box centre at the sensor's own scale, and only events
+inside the box are placed on it (the paper: "for bounding boxes smaller than 107 x 107, only the
+neurons corresponding to the events within the bounding box will emit spikes"). A box larger than
+the canvas is scaled down by size / max(w, h) (aspect kept), so several events may land on one
+canvas pixel; a pixel spikes once per step however many events it got. Channel 0 is OFF, 1 is ON.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from dvsot.events import EventBatch
+
+
+def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: int = 107, steps: int = 10,
+                 step_us: int = 1000) -> torch.Tensor:
+    """Binary input tensor (N, steps, 2, size, size) float32 for N boxes (xywh pixels) of one segment."""
+    boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
+    n = len(boxes)
+    out = torch.zeros((n, steps, 2, size, size), dtype=torch.float32)
+    if n == 0 or len(events) == 0:
+        return out
+    step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us
+    keep = (step >= 0) & (step < steps)
+    ex = events.x[keep].astype(np.float32) + 0.5  # pixel centres
+    ey = events.y[keep].astype(np.float32) + 0.5
+    ep = events.p[keep].astype(np.int64)
+    es = step[keep]
+    if ex.size == 0:
+        return out
+    x0, y0, w, h = (boxes[:, i:i + 1] for i in range(4))
+    inside = (ex >= x0) & (ex < x0 + w) & (ey >= y0) & (ey < y0 + h)  # (N, E)
+    bi, ei = np.nonzero(inside)
+    if bi.size == 0:
+        return out
+    scale = np.minimum(1.0, size / np.maximum(boxes[:, 2], boxes[:, 3]))
+    cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
+    u = np.floor((ex[ei] - cx[bi]) * scale[bi] + size / 2).astype(np.int64)
+    v = np.floor((ey[ei] - cy[bi]) * scale[bi] + size / 2).astype(np.int64)
+    ok = (u >= 0) & (u < size) & (v >= 0) & (v < size)
+    flat = (((bi[ok] * steps + es[ei][ok]) * 2 + ep[ei][ok]) * size + v[ok]) * size + u[ok]
+    out.view(-1)[torch.from_numpy(np.unique(flat))] = 1.0
+    return out
+
+
+def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale: float, size_hw: tuple[int, int],
+                  steps: int = 10, step_us: int = 1000) -> torch.Tensor:
+    """Binary input (1, steps, 2, H, W) of every event inside a sensor region, scaled by `scale` (canvas px per px)."""
+    hgt, wid = size_hw
+    out = torch.zeros((1, steps, 2, hgt, wid), dtype=torch.float32)
+    if len(events) == 0:
+        return out
+    step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us
+    rx, ry = float(region_xywh[0]), float(region_xywh[1])
+    u = np.floor((events.x.astype(np.float32) + 0.5 - rx) * scale).astype(np.int64)
+    v = np.floor((events.y.astype(np.float32) + 0.5 - ry) * scale).astype(np.int64)
+    ok = (step >= 0) & (step < steps) & (u >= 0) & (u < wid) & (v >= 0) & (v < hgt)
+    flat = ((step[ok] * 2 + events.p[ok].astype(np.int64)) * hgt + v[ok]) * wid + u[ok]
+    out.view(-1)[torch.from_numpy(np.unique(flat))] = 1.0
+    return out

@@ -1,0 +1,111 @@
+"""C-LIF neurons (paper eq. 1-4) in discrete time with a 1 ms step, and the STCA-style surrogate gradient.
+
+Continuous model: V(t) = L(t) - E(t), with the synaptic drive L(t) = sum_i w_i sum_j K(t - t_i^j),
+K(t) = V0 [exp(-t/a_m) - exp(-t/a_s)] (a_m > a_s, V0 normalises the kernel's peak to 1), and the
+reset E(t) = theta * sum_{t_s < t} exp(-(t - t_s)/a_m) after each output spike t_s.
+
+Discrete update (step n = 1 ms, d_m = exp(-1/a_m), d_s = exp(-1/a_s); the input of step n arrives
+at the start of the step and V is read at its end, so an input at step n0 contributes K(n - n0 + 1)):
+
+    m[n] = d_m (m[n-1] + I[n])          I[n] = sum_i w_i x_i[n]   (weighted input spikes)
+    s[n] = d_s (s[n-1] + I[n])
+    L[n] = V0 (m[n] - s[n])             = sum over inputs of V0 (d_m^k - d_s^k), k = n - n0 + 1
+    r[n] = d_m (r[n-1] + S[n-1])        = sum over output spikes of exp(-(n - n_s)/a_m)
+    V[n] = L[n] - theta r[n]
+    S[n] = H(V[n] - theta)
+
+V0 = 1 / max_k (d_m^k - d_s^k) over integer k >= 1: the peak of the discrete kernel is exactly 1, at
+k* = floor or ceil of t* = a_m a_s / (a_m - a_s) ln(a_m / a_s), the continuous peak time.
+
+a_m and a_s are learnable per channel: a_s = 1 + softplus(p_s), a_m = a_s + 0.05 + softplus(p_m),
+so a_m > a_s always and V0 stays finite. The spike's gradient is STCA's rectangular surrogate:
+dS/dV = 1/width where |V - theta| < width/2, else 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+THETA = 0.5
+
+
+class RectSurrogate(torch.autograd.Function):
+    """Heaviside spike forward; rectangular window of width `width` around the threshold backward."""
+
+    @staticmethod
+    def forward(ctx, v_minus_theta: torch.Tensor, width: float) -> torch.Tensor:  # type: ignore[override]
+        ctx.save_for_backward(v_minus_theta)
+        ctx.width = width
+        return (v_minus_theta >= 0).to(v_minus_theta.dtype)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # type: ignore[override]
+        (v,) = ctx.saved_tensors
+        window = (v.abs() < ctx.width / 2).to(grad.dtype) / ctx.width
+        return grad * window, None
+
+
+def _inverse_softplus(y: float) -> float:
+    return math.log(math.expm1(y))
+
+
+def kernel_norm(d_m: torch.Tensor, d_s: torch.Tensor, a_m: torch.Tensor, a_s: torch.Tensor) -> torch.Tensor:
+    """V0: one over the peak of the discrete kernel d_m^k - d_s^k, k >= 1 integer (differentiable in the decays)."""
+    t_star = a_m * a_s / (a_m - a_s) * torch.log(a_m / a_s)
+    k_lo = torch.clamp(torch.floor(t_star), min=1.0).detach()
+    k_hi = (k_lo + 1.0).detach()
+    peak = torch.maximum(d_m ** k_lo - d_s ** k_lo, d_m ** k_hi - d_s ** k_hi)
+    return 1.0 / peak
+
+
+def psp_kernel(t_ms: torch.Tensor, alpha_m: float, alpha_s: float) -> torch.Tensor:
+    """Continuous PSP kernel K(t) (eq. 4), normalised so its peak is 1; t in milliseconds."""
+    t_star = alpha_m * alpha_s / (alpha_m - alpha_s) * math.log(alpha_m / alpha_s)
+    v0 = 1.0 / (math.exp(-t_star / alpha_m) - math.exp(-t_star / alpha_s))
+    t = torch.as_tensor(t_ms, dtype=torch.float64)
+    return torch.where(t >= 0, v0 * (torch.exp(-t / alpha_m) - torch.exp(-t / alpha_s)), torch.zeros_like(t))
+
+
+class CLIF(nn.Module):
+    """A layer of C-LIF neurons with learnable per-channel time constants (ms); input (T, B, C, ...) currents."""
+
+    def __init__(self, channels: int, alpha_m: float = 4.0, alpha_s: float = 1.5, theta: float = THETA,
+                 surrogate_width: float = 1.0) -> None:
+        super().__init__()
+        if not alpha_m > alpha_s + 0.05 or alpha_s <= 1.0:
+            raise ValueError("need alpha_m > alpha_s + 0.05 and alpha_s > 1 (ms)")
+        self.theta = theta
+        self.surrogate_width = surrogate_width
+        self.p_s = nn.Parameter(torch.full((channels,), _inverse_softplus(alpha_s - 1.0)))
+        self.p_m = nn.Parameter(torch.full((channels,), _inverse_softplus(alpha_m - alpha_s - 0.05)))
+
+    def time_constants(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(alpha_m, alpha_s) per channel, milliseconds."""
+        a_s = 1.0 + F.softplus(self.p_s)
+        return a_s + 0.05 + F.softplus(self.p_m), a_s
+
+    def forward(self, current: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Spikes and voltages (both (T, B, C, ...)) for input currents (T, B, C, ...)."""
+        a_m, a_s = self.time_constants()
+        shape = (-1,) + (1,) * (current.dim() - 3)
+        d_m, d_s = torch.exp(-1.0 / a_m), torch.exp(-1.0 / a_s)
+        v0 = kernel_norm(d_m, d_s, a_m, a_s).view(shape)
+        d_m, d_s = d_m.view(shape), d_s.view(shape)
+        m = torch.zeros_like(current[0])
+        s = torch.zeros_like(current[0])
+        r = torch.zeros_like(current[0])
+        spike = torch.zeros_like(current[0])
+        spikes, volts = [], []
+        for n in range(current.shape[0]):
+            m = d_m * (m + current[n])
+            s = d_s * (s + current[n])
+            r = d_m * (r + spike)
+            v = v0 * (m - s) - self.theta * r
+            spike = RectSurrogate.apply(v - self.theta, self.surrogate_width)
+            spikes.append(spike)
+            volts.append(v)
+        return torch.stack(spikes), torch.stack(volts)

@@ -1,0 +1,106 @@
+"""SCTN tracking (paper Algorithm 1): fine-tune on the first segment, then score candidates per segment.
+
+Per segment: 256 gaussian candidates around the last box (translation range `trans` x mean box
+size, scale 1.05), each scored by the maximum voltage of the target neuron over the time window;
+the boxes of the top 3 voltages give the mean voltage V* and the mean box. V* >= 0.2 resets the
+translation range to its initial value; otherwise it grows by `trans_growth` up to `trans_max`.
+
+`fast=True` runs the convolutions once over a search region that holds every candidate and crops
+per candidate before the fully connected layers (SCTN.forward_search); `fast=False` evaluates each
+candidate separately, as in the paper. Fine-tuning happens on the first initialisation of a
+sequence only; a later re-initialisation (after a failure) resets the box and the range. A fixed
+seed gives the same candidates, hence the same track.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+
+import numpy as np
+import torch
+
+from dvsot.events import EventBatch
+from sctn.encoding import encode_boxes, encode_region
+from sctn.network import SCTN
+from sctn.samples import TRACK, SampleSpec, propose
+from sctn.train import finetune
+
+
+class SCTNTracker:
+    """Single-object tracker on event segments with a (fine-tuned copy of a) trained SCTN."""
+
+    def __init__(self, model: SCTN | str | os.PathLike | None = None, seed: int = 0, fast: bool = True,
+                 finetune_iters: int = 10, n_candidates: int = TRACK.n, trans: float = TRACK.trans,
+                 trans_growth: float = 1.5, trans_max: float = 1.5, vstar_threshold: float = 0.2,
+                 top_k: int = 3) -> None:
+        if model is None or isinstance(model, (str, os.PathLike)):
+            from sctn.checkpoint import load_checkpoint
+
+            model, _ = load_checkpoint(model)
+        self.base = model
+        self.model: SCTN = model
+        self.seed, self.fast, self.finetune_iters = seed, fast, finetune_iters
+        self.n_candidates, self.trans0, self.trans_growth, self.trans_max = n_candidates, trans, trans_growth, trans_max
+        self.vstar_threshold, self.top_k = vstar_threshold, top_k
+        self.rng = np.random.default_rng(seed)
+        self.box = np.full(4, np.nan)
+        self.trans = trans
+        self.image_wh = (0, 0)
+        self.tuned = False
+        self.last_stats: dict = {}
+
+    def init(self, events: EventBatch, t0_us: int, box_xywh: np.ndarray, width: int, height: int) -> None:
+        """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time."""
+        self.box = np.asarray(box_xywh, np.float64).copy()
+        self.image_wh = (int(width), int(height))
+        self.trans = self.trans0
+        if not self.tuned:
+            self.rng = np.random.default_rng(self.seed)
+            self.model = copy.deepcopy(self.base)
+            if self.finetune_iters > 0:
+                torch.manual_seed(self.seed)
+                self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
+                                           iters=self.finetune_iters)
+            self.tuned = True
+
+    def candidates(self) -> np.ndarray:
+        """Gaussian candidates (N, 4) around the last box with the current translation range."""
+        return propose(self.rng, self.box, self.n_candidates, "gaussian", self.trans, TRACK.scale, self.image_wh)
+
+    def score(self, events: EventBatch, t0_us: int, boxes: np.ndarray) -> np.ndarray:
+        """Maximum target-neuron voltage of each candidate over the time window."""
+        cfg = self.model.cfg
+        with torch.no_grad():
+            if not self.fast:
+                v = torch.cat([self.model(encode_boxes(events, t0_us, boxes[i:i + 64], cfg.input_size, cfg.steps,
+                                                       cfg.step_us)) for i in range(0, len(boxes), 64)])
+                return v[:, :, 1].max(dim=1).values.numpy()
+            scale = min(1.0, cfg.input_size / float(max(self.box[2], self.box[3])))
+            centres = boxes[:, :2] + boxes[:, 2:] / 2
+            half = cfg.input_size / 2 / scale  # sensor px from a canvas centre to its edge
+            stride, _ = self.model.receptive_field()
+            x0 = np.floor((centres[:, 0].min() - half) / stride) * stride
+            y0 = np.floor((centres[:, 1].min() - half) / stride) * stride
+            wid = int(np.ceil((centres[:, 0].max() + half - x0) * scale)) + stride
+            hgt = int(np.ceil((centres[:, 1].max() + half - y0) * scale)) + stride
+            region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), cfg.steps, cfg.step_us)
+            origins = torch.from_numpy(((centres - [x0, y0]) * scale - cfg.input_size / 2).astype(np.float32))
+            rboxes = np.concatenate([(boxes[:, :2] - [x0, y0]) * scale, boxes[:, 2:] * scale], axis=1)
+            v = self.model.forward_search(region, origins, torch.from_numpy(rboxes.astype(np.float32)))
+            return v[:, :, 1].max(dim=1).values.numpy()
+
+    def track(self, events: EventBatch, t0_us: int) -> np.ndarray:
+        """The target's box (4,) xywh pixels at the end of this segment."""
+        boxes = self.candidates()
+        scores = self.score(events, t0_us, boxes)
+        top = np.argsort(-scores, kind="stable")[: self.top_k]
+        vstar = float(scores[top].mean())
+        # Algorithm 1: confident -> reset the search range, else widen it; the box is C* either way
+        if vstar >= self.vstar_threshold:
+            self.trans = self.trans0
+        else:
+            self.trans = min(self.trans * self.trans_growth, self.trans_max)
+        self.box = boxes[top].mean(axis=0)
+        self.last_stats = {"vstar": vstar, "trans": self.trans}
+        return self.box.astype(np.float32).copy()

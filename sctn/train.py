@@ -1,0 +1,194 @@
+"""Training SCTN directly as an SNN (STCA-style surrogate gradients through time) on dataset files, and fine-tuning.
+
+Per training segment (one with a ground-truth box of at least `min_box_px` a side): 20 positive
+(IoU >= 0.7) and 40 negative (IoU <= 0.5) uniform samples (paper §2.4), encoded as the events inside
+each box (sctn/encoding.py); the loss is the voltage loss of sctn/loss.py on each output neuron's
+maximum voltage over the time window. Adam. Every `val_every` steps a fixed held-out set of segments
+(every 10th segment of each file) is scored.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dvsot.dataset import Dataset
+from dvsot.events import EventBatch
+from sctn.encoding import encode_boxes
+from sctn.loss import THETA, voltage_loss
+from sctn.network import SCTN, NetworkConfig
+from sctn.samples import FINETUNE, TRAIN, labelled_samples
+
+
+@dataclass
+class TrainConfig:
+    """Training settings (segments, samples, optimiser, budget)."""
+
+    epochs: int = 3
+    segments_per_epoch: int | None = 400
+    batch_segments: int = 4
+    lr: float = 2e-3
+    loss: str = "exp"
+    seed: int = 0
+    min_box_px: float = 8.0
+    val_every: int = 50
+    val_segments: int = 40
+    max_minutes: float | None = None
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+
+
+def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:
+    """Indices of segments whose ground truth exists and is at least min_box_px on each side."""
+    b = ds.segment_boxes()
+    ok = np.isfinite(b).all(axis=1) & (b[:, 2] >= min_box_px) & (b[:, 3] >= min_box_px)
+    return np.flatnonzero(ok)
+
+
+def segment_batch(items: list[tuple[EventBatch, int, np.ndarray]], image_wh: list[tuple[int, int]],
+                  rng: np.random.Generator, net_cfg: NetworkConfig, specs=TRAIN):
+    """Encoded samples of several segments: inputs (N, T, 2, S, S), IoUs (N,), positive flags (N,)."""
+    xs, ious, pos = [], [], []
+    for (events, t0, box), wh in zip(items, image_wh):
+        boxes, iou, p = labelled_samples(rng, box, specs, wh)
+        xs.append(encode_boxes(events, t0, boxes, net_cfg.input_size, net_cfg.steps, net_cfg.step_us))
+        ious.append(iou)
+        pos.append(p)
+    return torch.cat(xs), torch.from_numpy(np.concatenate(ious)), torch.from_numpy(np.concatenate(pos))
+
+
+def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, kind: str) -> dict:
+    """Loss, firing accuracy of the target neuron and mean V_max of positives / negatives on one batch."""
+    with torch.no_grad():
+        vmax = model(x).max(dim=1).values
+        loss = float(voltage_loss(vmax, iou, pos, kind))
+    fires = vmax[:, 1] >= THETA
+    return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
+            "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
+            "vmax_neg": float(vmax[~pos, 1].mean()) if (~pos).any() else float("nan")}
+
+
+def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print) -> tuple[SCTN, dict]:
+    """Train a new SCTN on the given dataset files; returns the model and a history of metrics."""
+    from tqdm import tqdm
+
+    rng = np.random.default_rng(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    datasets = [Dataset(f) for f in files]
+    try:
+        train_items, val_items = [], []
+        for d, ds in enumerate(datasets):
+            idx = usable_segments(ds, cfg.min_box_px)
+            val_items += [(d, int(i)) for i in idx[::10]]
+            train_items += [(d, int(i)) for k, i in enumerate(idx) if k % 10 != 0]
+        if not train_items:
+            raise ValueError("no training segments with a ground-truth box")
+
+        def load(items):
+            segs = [datasets[d].segment(i) for d, i in items]
+            return ([(s.events, s.t0_us, s.box) for s in segs],
+                    [(datasets[d].width, datasets[d].height) for d, _ in items])
+
+        model = SCTN(cfg.network)
+        calib_items = [train_items[k] for k in rng.choice(len(train_items), min(8, len(train_items)), replace=False)]
+        history_calibration = model.calibrate(segment_batch(*load(calib_items), rng, cfg.network)[0])
+        opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+
+        val_pick = [val_items[i] for i in np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)] if val_items else []
+        val_rng = np.random.default_rng(cfg.seed + 1)
+        val_batch = segment_batch(*load(val_pick), val_rng, cfg.network) if val_pick else None
+        history: dict = {"train_loss": [], "val": [], "calibration": history_calibration}
+        start = time.monotonic()
+        step = 0
+        per_epoch = min(len(train_items), cfg.segments_per_epoch or len(train_items))
+        total = cfg.epochs * (per_epoch // cfg.batch_segments)
+        bar = tqdm(total=total, unit="batch", disable=not progress, desc="train")
+        stop = False
+        for epoch in range(cfg.epochs):
+            order = rng.permutation(len(train_items))[:per_epoch]
+            for b in range(0, len(order) - cfg.batch_segments + 1, cfg.batch_segments):
+                items = [train_items[k] for k in order[b:b + cfg.batch_segments]]
+                x, iou, pos = segment_batch(*load(items), rng, cfg.network)
+                model.train()
+                vmax = model(x).max(dim=1).values
+                loss = voltage_loss(vmax, iou, pos, cfg.loss)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                history["train_loss"].append(float(loss.detach()))
+                step += 1
+                bar.update(1)
+                bar.set_postfix(epoch=epoch, loss=f"{history['train_loss'][-1]:.4f}", refresh=False)
+                if val_batch is not None and step % cfg.val_every == 0:
+                    model.eval()
+                    m = evaluate(model, *val_batch, cfg.loss)
+                    m["step"] = step
+                    history["val"].append(m)
+                    bar.write(f"step {step}: val loss {m['loss']:.4f} acc {m['accuracy']:.3f} "
+                              f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}")
+                if cfg.max_minutes is not None and time.monotonic() - start > 60 * cfg.max_minutes:
+                    stop = True
+                    break
+            if stop:
+                break
+        bar.close()
+        model.eval()
+        if val_batch is not None:
+            final = evaluate(model, *val_batch, cfg.loss)
+            final["step"] = step
+            history["val"].append(final)
+        history.update(steps=step, minutes=(time.monotonic() - start) / 60, train_segments=len(train_items),
+                       val_segments=len(val_pick))
+        return model, history
+    finally:
+        for ds in datasets:
+            ds.close()
+
+
+def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image_wh: tuple[int, int],
+             rng: np.random.Generator, iters: int = 10, batch: int = 128, lr: float = 1e-3, kind: str = "exp",
+             specs=FINETUNE) -> dict:
+    """Fine-tune in place on one segment: 500 gaussian positives, 1000 uniform + 1000 whole-image negatives."""
+    boxes, iou, pos = labelled_samples(rng, np.asarray(box, np.float64), specs, image_wh)
+    cfg = model.cfg
+    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    model.train()
+    losses = []
+    for _ in range(iters):
+        pick = rng.choice(len(boxes), min(batch, len(boxes)), replace=False)
+        x = encode_boxes(events, t0_us, boxes[pick], cfg.input_size, cfg.steps, cfg.step_us)
+        vmax = model(x).max(dim=1).values
+        loss = voltage_loss(vmax, torch.from_numpy(iou[pick]), torch.from_numpy(pos[pick]), kind)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(float(loss))
+    model.eval()
+    return {"finetune_loss_first": losses[0] if losses else None, "finetune_loss_last": losses[-1] if losses else None}
+
+
+def provenance(files: list[Path], cfg: TrainConfig, history: dict) -> dict:
+    """What made a checkpoint: data files (size, name, split), config, command, git commit, metrics."""
+    from dataclasses import asdict
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).resolve().parent, timeout=5).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    data = []
+    for f in files:
+        with Dataset(f) as ds:
+            data.append({"file": str(f), "name": ds.name, "split": ds.split, "bytes": Path(f).stat().st_size,
+                         "events": ds.num_events, "segments": ds.num_segments})
+    c = asdict(cfg)
+    c["network"] = cfg.network.model_dump()
+    return {"train_config": c, "data": data, "command": " ".join(sys.argv), "git_commit": commit,
+            "history": {k: v for k, v in history.items() if k != "train_loss"},
+            "train_loss_first_last": [history["train_loss"][0], history["train_loss"][-1]] if history["train_loss"] else None,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
