@@ -167,7 +167,7 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
         opt.zero_grad()
         loss.backward()
         opt.step()
-        losses.append(float(loss))
+        losses.append(float(loss.detach()))
     model.eval()
     return {"finetune_loss_first": losses[0] if losses else None, "finetune_loss_last": losses[-1] if losses else None}
 

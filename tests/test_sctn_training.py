@@ -1,0 +1,101 @@
+"""Samples respect their IoU bounds; training on a tiny synthetic set separates positives from negatives;
+the tracker follows a moving synthetic square, deterministically; checkpoints and `dvsot train` errors."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from dvsot.boxes import iou_xywh
+from dvsot.cli import main
+from dvsot.dataset import Dataset
+from sctn.checkpoint import load_checkpoint, save_checkpoint
+from sctn.samples import FINETUNE, TRACK, TRAIN, SampleSpec, draw_samples, labelled_samples
+from sctn.tracker import SCTNTracker
+from sctn.train import TrainConfig, train
+
+sys.path.insert(0, str(Path(__file__).parent))
+from synthetic import moving_square_file  # noqa: E402
+
+torch.set_num_threads(1)
+
+
+@pytest.mark.parametrize("spec", list(TRAIN) + list(FINETUNE) + [TRACK])
+def test_samples_respect_their_iou_bounds_and_the_image(spec):
+    rng = np.random.default_rng(0)
+    box = np.array([100.0, 80.0, 40.0, 30.0])
+    s = draw_samples(rng, box, spec, (320, 240))
+    iou = iou_xywh(s, box[None])
+    assert len(s) == spec.n
+    assert np.all(iou >= spec.iou_range[0]) and np.all(iou <= spec.iou_range[1])
+    assert np.all(s[:, :2] >= 0) and np.all(s[:, 0] + s[:, 2] <= 320 + 1e-3) and np.all(s[:, 1] + s[:, 3] <= 240 + 1e-3)
+    boxes, ious, pos = labelled_samples(rng, box, TRAIN, (320, 240))
+    assert pos.sum() == 20 and (~pos).sum() == 40 and np.all(ious[pos] >= 0.7)
+
+
+def test_impossible_iou_bound_is_an_error():
+    with pytest.raises(ValueError, match="could not draw"):
+        draw_samples(np.random.default_rng(0), np.array([0, 0, 10, 10.0]), SampleSpec("whole", 5, 0, 1.0, (0.99, 1.0)),
+                     (1000, 1000), max_rounds=3)
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    d = tmp_path_factory.mktemp("syn")
+    train_file = moving_square_file(d / "train.h5", duration_ms=150, seed=0)
+    test_file = moving_square_file(d / "test.h5", duration_ms=150, seed=1, velocity_px_s=(-120, 50),
+                                   start=(110, 20), split="test")
+    cfg = TrainConfig(epochs=3, segments_per_epoch=12, batch_segments=2, val_every=100, val_segments=2, seed=0, lr=3e-3)
+    model, history = train([train_file], cfg, progress=False)
+    return model, history, train_file, test_file
+
+
+def test_training_lowers_the_loss_and_separates_positives_from_negatives(trained):
+    model, history, _, _ = trained
+    losses = history["train_loss"]
+    assert np.mean(losses[-3:]) < 0.7 * np.mean(losses[:3])
+    final = history["val"][-1]
+    assert final["vmax_pos"] > final["vmax_neg"] + 0.3 and final["accuracy"] > 0.8
+
+
+def run_tracker(model, path, fast):
+    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64)
+    with Dataset(path) as ds:
+        s0 = ds.segment(0)
+        tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)
+        boxes = [tracker.track(s.events, s.t0_us) for s in ds.segments(1)]
+        gt = ds.segment_boxes()[1:]
+    return np.array(boxes), iou_xywh(np.array(boxes), gt)
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_tracker_follows_a_moving_square_deterministically(trained, fast):
+    model, _, _, test_file = trained
+    boxes, iou = run_tracker(model, test_file, fast)
+    assert iou.mean() > 0.5 and iou.min() > 0.2
+    again, _ = run_tracker(model, test_file, fast)
+    np.testing.assert_array_equal(boxes, again)
+
+
+def test_checkpoint_round_trip_and_train_cli_errors(trained, tmp_path, capsys):
+    model, history, train_file, _ = trained
+    path = save_checkpoint(tmp_path / "m.pt", model, {"note": "test"})
+    loaded, meta = load_checkpoint(path)
+    assert meta["note"] == "test" and json.loads(path.with_suffix(".json").read_text())["note"] == "test"
+    x = (torch.rand(2, 10, 2, 107, 107) < 0.02).float()
+    assert torch.equal(loaded(x), model(x))
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    from dvsot.errors import UserError
+
+    with pytest.raises(UserError, match="junk.pt"):
+        load_checkpoint(tmp_path / "junk.pt")
+    out = tmp_path / "new.pt"
+    assert main(["train", "--data", str(train_file), "--split", "test", "-o", str(out), "--quiet"]) == 2
+    assert "split 'test'" in capsys.readouterr().err
+    (tmp_path / "junk.h5").write_text("x")
+    assert main(["train", "--data", str(tmp_path / "junk.h5"), "-o", str(out), "--quiet"]) == 2
+    assert main(["train", "--data", str(train_file), "-o", str(tmp_path / "no" / "x.pt"), "--quiet"]) == 2
+    assert not out.exists()
