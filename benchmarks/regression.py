@@ -1,0 +1,99 @@
+"""CI regression of tracking metrics: a tiny Blender-made benchmark whose A / R / ARscore are compared with a
+committed reference (benchmarks/reference/ci_metrics.json) within stated tolerances.
+
+    python -m benchmarks.regression                      # run, compare, exit 1 on a regression
+    python -m benchmarks.regression --update-reference   # run and rewrite the reference (shows in the diff)
+
+The run: `dvsot generate` renders benchmarks/reference/ci_train.yaml and ci_test.yaml (128x96,
+0.3 s each); SCTN is trained for a few deterministic steps on the first (one thread, fixed seeds)
+and tracks the second with 64 candidates in fast mode; RCT tracks it too. A metric regresses when
+it falls below reference - tolerance; rising above the reference never fails (update the
+reference to lock a gain in).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+REFERENCE_DIR = Path(__file__).resolve().parent / "reference"
+REFERENCE = REFERENCE_DIR / "ci_metrics.json"
+TOLERANCE = {"ARscore": 0.05, "A": 0.05, "R": 0.08}
+
+
+def run_ci_benchmark(workdir: Path) -> dict:
+    """Generate the two tiny sequences, train SCTN briefly, track with sctn and rct; {tracker: {A, R, ARscore}}."""
+    import torch
+
+    from benchmarks.metrics import scores
+    from benchmarks.protocol import run_sequence
+    from benchmarks.trackers import get_tracker
+    from benchmarks.trackers.sctn import SCTNBenchTracker
+    from dvsot.config import load_scene
+    from dvsot.dataset import Dataset
+    from dvsot.generate import generate
+    from sctn.tracker import SCTNTracker
+    from sctn.train import TrainConfig, train
+
+    torch.set_num_threads(1)
+    files = {}
+    for name in ("ci_train", "ci_test"):
+        path = REFERENCE_DIR / f"{name}.yaml"
+        files[name] = workdir / f"{name}.h5"
+        generate(load_scene(path), files[name], path.read_text(), progress=False)
+    cfg = TrainConfig(epochs=3, segments_per_epoch=24, batch_segments=2, lr=3e-3, seed=0, val_every=1000,
+                      val_segments=2)
+    model, _ = train([files["ci_train"]], cfg, progress=False)
+    sctn = SCTNBenchTracker.__new__(SCTNBenchTracker)
+    sctn.tracker = SCTNTracker(model, seed=0, fast=True, finetune_iters=3, n_candidates=64)
+    sctn.energy_every, sctn._updates, sctn._energy = 0, 0, None
+    out = {}
+    with Dataset(files["ci_test"]) as ds:
+        for name, tracker in (("sctn", sctn), ("rct", get_tracker("rct"))):
+            res = run_sequence(tracker, ds, name)
+            if res.error:
+                raise RuntimeError(f"{name} crashed on the CI sequence: {res.error}")
+            s = scores(res.iou)
+            out[name] = {"A": round(s.accuracy, 4), "R": round(s.robustness, 4), "ARscore": round(s.arscore, 4),
+                         "segments": s.segments}
+    return out
+
+
+def compare(reference: dict, current: dict, tolerance: dict = TOLERANCE) -> list[str]:
+    """Regressions: metrics below reference - tolerance (and trackers missing from the run)."""
+    problems = []
+    for tracker, ref in reference.items():
+        cur = current.get(tracker)
+        if cur is None:
+            problems.append(f"{tracker}: missing from this run")
+            continue
+        for metric, tol in tolerance.items():
+            if cur[metric] < ref[metric] - tol:
+                problems.append(f"{tracker} {metric} {cur[metric]:.3f} < reference {ref[metric]:.3f} - {tol}")
+    return problems
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CI benchmark; compare with (or rewrite) the reference."""
+    parser = argparse.ArgumentParser(description="CI regression of tracking metrics")
+    parser.add_argument("--update-reference", action="store_true", help="rewrite benchmarks/reference/ci_metrics.json")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="dvsot-ci-") as tmp:
+        current = run_ci_benchmark(Path(tmp))
+    print(json.dumps(current, indent=2))
+    if args.update_reference:
+        REFERENCE.write_text(json.dumps({"tolerance": TOLERANCE, "metrics": current}, indent=2) + "\n")
+        print(f"reference written: {REFERENCE}")
+        return 0
+    reference = json.loads(REFERENCE.read_text())["metrics"]
+    problems = compare(reference, current)
+    for p in problems:
+        print("REGRESSION: " + p, file=sys.stderr)
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
