@@ -29,10 +29,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="import this module first, so that the trackers it registers can be named")
     p.add_argument("--max-segments", type=int, default=None, help="only the first N segments of each sequence")
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
+    p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
+                   help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
+    p.add_argument("--checkpoint", help="SCTN checkpoint for --tracker sctn (default: the shipped one)")
+    p.add_argument("--no-energy", action="store_true", help="skip the energy table when sctn runs")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None):
+def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None, options: dict | None = None):
     """Worker: run one tracker on one file (in a fresh process when parallel)."""
     from benchmarks.protocol import run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
@@ -42,7 +46,7 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
         load_tracker_module(m)
     with Dataset(path) as ds:
         try:
-            instance = get_tracker(tracker)
+            instance = get_tracker(tracker, **(options or {}))
         except Exception as exc:  # construction failures fail this run only, like crashes
             from benchmarks.protocol import SequenceResult
             import numpy as np
@@ -51,6 +55,13 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
             return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
                                   error=f"{type(exc).__name__}: {exc}")
         return run_sequence(instance, ds, tracker, max_segments=max_segments)
+
+
+def _name(path) -> str:
+    from dvsot.dataset import Dataset
+
+    with Dataset(path) as ds:
+        return ds.name
 
 
 def resolve_data(specs: list[str] | None, split: str) -> list:
@@ -77,6 +88,7 @@ def resolve_data(specs: list[str] | None, split: str) -> list:
 
 def run(args: argparse.Namespace) -> int:
     """Run every tracker on every sequence, print the table and write it in every format."""
+    import json
     import os
     import time
     from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -98,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
     tasks = [(t, str(f)) for t in trackers for f in files]
+    options = {"sctn": {"checkpoint": args.checkpoint}} if args.checkpoint else {}
     jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     results: list = [None] * len(tasks)
@@ -105,12 +118,12 @@ def run(args: argparse.Namespace) -> int:
     if jobs == 1:
         for k, (t, f) in enumerate(tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = _run_one(t, f, args.tracker_module, args.max_segments)
+            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, options.get(t))
             bar.update(1)
     else:
         # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well)
         with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments): k
+            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, options.get(t)): k
                        for k, (t, f) in enumerate(tasks)}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
@@ -129,5 +142,22 @@ def run(args: argparse.Namespace) -> int:
         for r in results:
             per.setdefault(r.tracker, {})[r.sequence] = r.iou
         paths["png"] = plot_iou_over_time(per, out_dir / "iou_over_time.png")
+    for seq in args.video:
+        from dvsot.preview import write_preview
+
+        chosen = [r for r in results if r.sequence == seq]
+        if not chosen:
+            raise UserError(f"--video {seq}: no such sequence in this run")
+        path = next(f for f in files if _name(f) == seq)
+        paths[f"gif:{seq}"] = write_preview(path, out_dir / f"{seq}.gif", {r.tracker: r.predictions for r in chosen})
+    if "sctn" in trackers and not args.no_energy:
+        from benchmarks.energy_table import energy_table, format_energy_table, plot_firing_rates
+        from sctn.checkpoint import load_checkpoint
+
+        table = energy_table(load_checkpoint(args.checkpoint)[0], files)
+        print(format_energy_table(table))
+        (out_dir / "energy.json").write_text(json.dumps(table, indent=2))
+        paths["energy"] = out_dir / "energy.json"
+        paths["firing"] = plot_firing_rates(table["firing"], out_dir / "firing_rate.png")
     print("written: " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -1,0 +1,72 @@
+"""Time SCTN tracking (fast and paper-faithful modes) and count its synaptic operations; print JSON.
+
+    python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50]
+
+Without --data a synthetic 160x120 sequence (a textured square, made in numpy) is used. Timing is
+tracker time per segment (scoring the candidates), fine-tuning excluded; one torch thread per
+process as in `dvsot bench`, plus a two-thread run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+
+def time_mode(model, path: Path, fast: bool, segments: int, threads: int) -> dict:
+    from dvsot.boxes import iou_xywh
+    from dvsot.dataset import Dataset
+    from sctn.tracker import SCTNTracker
+
+    torch.set_num_threads(threads)
+    tracker = SCTNTracker(model, seed=0, fast=fast, finetune_iters=0)
+    with Dataset(path) as ds:
+        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
+        s0 = ds.segment(first)
+        tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)
+        segs = list(ds.segments(first + 1, first + 1 + segments))
+    start = time.perf_counter()
+    ious = [float(iou_xywh(tracker.track(s.events, s.t0_us), s.box)) for s in segs]
+    wall = time.perf_counter() - start
+    return {"fast": fast, "threads": threads, "segments": len(segs), "segments_per_s": round(len(segs) / wall, 2),
+            "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
+    parser.add_argument("--checkpoint", help="SCTN checkpoint (default: the shipped one)")
+    parser.add_argument("--segments", type=int, default=50)
+    args = parser.parse_args()
+    from sctn.checkpoint import load_checkpoint
+    from sctn.encoding import encode_boxes
+    from sctn.energy import count_synaptic_ops
+
+    model, _ = load_checkpoint(args.checkpoint)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(args.data) if args.data else None
+        if path is None:
+            sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+            from synthetic import moving_square_file
+
+            path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
+        runs = [time_mode(model, path, fast, args.segments, threads) for fast in (True, False) for threads in (1, 2)]
+        from dvsot.dataset import Dataset
+
+        with Dataset(path) as ds:
+            seg = ds.segment(len(ds.segment_boxes()) // 2)
+        x = encode_boxes(seg.events, seg.t0_us, seg.box[None])
+        ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
+    print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"), "runs": runs,
+                      "ac_ops_per_candidate": ops, "ac_ops_per_segment_256": ops * 256}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
