@@ -60,6 +60,8 @@ def test_bad_input_exits_2(tmp_path, capsys):
         (["--tracker", "rct", "--data", str(tmp_path / "nobox.h5")], "no ground-truth"),
         (["--tracker", "rct", "--data", str(tmp_path / "a.h5"), "--split", "train"], "split 'train'"),
         (["--tracker", "rct", "--tracker-module", "no_such_module_x"], "cannot import"),
+        (["--tracker", "rct", "--data", str(tmp_path / "a.h5"), "--option", "rct-size=3"], "TRACKER.KEY=VALUE"),
+        (["--tracker", "rct", "--data", str(tmp_path / "a.h5"), "--option", "sctn.fast=false"], "not in this run"),
     ]
     for argv, words in cases:
         assert main(["bench", *argv, "--quiet"]) == 2, argv

@@ -33,6 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
     p.add_argument("--checkpoint", help="SCTN checkpoint for --tracker sctn (default: the shipped one)")
     p.add_argument("--no-energy", action="store_true", help="skip the energy table when sctn runs")
+    p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
+                   help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -55,6 +57,28 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
             return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
                                   error=f"{type(exc).__name__}: {exc}")
         return run_sequence(instance, ds, tracker, max_segments=max_segments)
+
+
+def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
+    """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values parsed as JSON when they are)."""
+    import json
+
+    from dvsot.errors import UserError
+
+    out: dict[str, dict] = {}
+    for spec in specs:
+        name, _, rest = spec.partition(".")
+        key, eq, raw = rest.partition("=")
+        if not (name and key and eq):
+            raise UserError(f"--option {spec!r}: expected TRACKER.KEY=VALUE")
+        if name not in trackers:
+            raise UserError(f"--option {spec!r}: tracker '{name}' is not in this run")
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        out.setdefault(name, {})[key] = value
+    return out
 
 
 def _name(path) -> str:
@@ -110,7 +134,9 @@ def run(args: argparse.Namespace) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
     tasks = [(t, str(f)) for t in trackers for f in files]
-    options = {"sctn": {"checkpoint": args.checkpoint}} if args.checkpoint else {}
+    options = _options(args.option, trackers)
+    if args.checkpoint:
+        options.setdefault("sctn", {})["checkpoint"] = args.checkpoint
     jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     results: list = [None] * len(tasks)
