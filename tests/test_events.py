@@ -113,6 +113,7 @@ def test_per_interval_mismatch_redraws_thresholds():
 @pytest.mark.parametrize("frame, t, words", [
     (np.ones((3, 4)), 2_000, "shape"),
     (np.full((4, 5), np.nan), 2_000, "NaN"),
+    (np.full((4, 5), np.inf), 2_000, "infinite"),
     (-np.ones((4, 5)), 2_000, "negative"),
     (np.ones((4, 5)), 1_000, "increase"),
     (np.ones((4, 5), dtype=complex), 2_000, "dtype"),

@@ -38,6 +38,28 @@ def test_npy_stack_with_timestamps_matches_the_simulator(tmp_path, capsys):
     assert summary["events"] == len(got) > 0
 
 
+def test_boxes_csv_gives_the_segment_ground_truth(tmp_path, capsys):
+    np.save(tmp_path / "s.npy", stack(31))
+    # boxes for the first 20 ms only (times in seconds, as the frames: 1 kHz from t = 0)
+    (tmp_path / "b.csv").write_text("# t_s,x,y,w,h\n0.000,2,3,10,8\n0.020,12,3,10,8\n")
+    out = tmp_path / "b.h5"
+    assert main(["simulate", str(tmp_path / "s.npy"), "--fps", "1000", "-o", str(out), "--quiet",
+                 "--boxes", str(tmp_path / "b.csv")]) == 0
+    with Dataset(out) as ds:
+        seg = ds.segment_boxes()
+        assert ds.num_segments == 3 and len(ds.boxes().t) == 2
+        np.testing.assert_allclose(seg[0], [7, 3, 10, 8])  # halfway between the two samples at t = 10 ms
+        np.testing.assert_allclose(seg[1], [12, 3, 10, 8])
+    capsys.readouterr()
+    assert main(["info", "--json", str(out)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["segments_with_box"] >= 2 and info["box_width_px"][0] == 10
+    (tmp_path / "bad.csv").write_text("0.0,1,2,3\n")
+    assert main(["simulate", str(tmp_path / "s.npy"), "--fps", "1000", "-o", str(tmp_path / "c.h5"),
+                 "--quiet", "--boxes", str(tmp_path / "bad.csv")]) == 2
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_png_directory_8_and_16_bit_with_fps(tmp_path, capsys):
     frames = stack(12)
     for i, f in enumerate(frames):
