@@ -46,7 +46,14 @@ def box_from_mask(mask: np.ndarray, threshold: float = 0.5) -> np.ndarray:
     """The upright rectangle circumscribing every contour of mask > threshold, xywh float32 pixels; NaN if empty."""
     import cv2
 
-    binary = (np.asarray(mask) > threshold).astype(np.uint8)
+    m = np.asarray(mask)
+    if m.ndim == 3 and m.shape[2] == 1:
+        m = m[:, :, 0]
+    if m.ndim != 2:
+        raise ValueError(f"box_from_mask needs a 2-D mask (alpha), got shape {m.shape}")
+    binary = (m > threshold).astype(np.uint8)  # NaN alpha compares False: background
+    # RETR_EXTERNAL: holes do not matter for the circumscribed rectangle; all outer contours do, so a
+    # target split by an occluder (or made of several parts) still gets one amodal box.
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
         return np.full(4, np.nan, np.float32)
@@ -55,10 +62,11 @@ def box_from_mask(mask: np.ndarray, threshold: float = 0.5) -> np.ndarray:
 
 
 def clip_box(xywh: np.ndarray, width: int, height: int) -> np.ndarray:
-    """The part of a box inside a width x height image (pixels); NaN when nothing remains."""
+    """The part of box(es) (..., 4) xywh inside a width x height image, float32 pixels; NaN where nothing remains."""
     b = np.asarray(xywh, dtype=np.float32)
-    x0, y0 = np.clip(b[0], 0, width), np.clip(b[1], 0, height)
-    x1, y1 = np.clip(b[0] + b[2], 0, width), np.clip(b[1] + b[3], 0, height)
-    if not (x1 > x0 and y1 > y0):
-        return np.full(4, np.nan, np.float32)
-    return np.array([x0, y0, x1 - x0, y1 - y0], np.float32)
+    x0, y0 = np.clip(b[..., 0], 0, width), np.clip(b[..., 1], 0, height)
+    x1, y1 = np.clip(b[..., 0] + b[..., 2], 0, width), np.clip(b[..., 1] + b[..., 3], 0, height)
+    out = np.stack([x0, y0, x1 - x0, y1 - y0], axis=-1).astype(np.float32)
+    empty = ~((x1 > x0) & (y1 > y0))  # also True for NaN input
+    out[empty] = np.nan
+    return out

@@ -32,3 +32,39 @@ def test_rate_limits():
 def test_bad_span():
     with pytest.raises(ValueError):
         motion_bounded_times(lambda t: np.zeros((1, 2)), 1.0, 1.0)
+
+
+def test_static_scene_samples_at_min_rate_and_ends_exactly():
+    times = motion_bounded_times(lambda t: np.array([[5.0, 5.0], [np.nan, 1.0]]), 0.25, 0.3, 0.75, 200.0, 1000.0)
+    np.testing.assert_allclose(times, np.linspace(0.25, 0.3, 11))
+    assert times[-1] == 0.3
+
+
+def test_remainder_under_a_microsecond_is_merged():
+    times = motion_bounded_times(lambda t: np.zeros((1, 2)), 0.0, 0.0100004, 0.75, 100.0, 1000.0)
+    assert list(times) == [0.0, 0.0100004]
+    us = np.rint(motion_bounded_times(lambda t: np.array([[1e3 * t, 0]]), 0.0, 0.0300003, 0.75) * 1e6)
+    assert np.all(np.diff(us) > 0)
+
+
+def test_max_rate_caps_and_min_rate_bounds_every_step():
+    proj = lambda t: np.array([[3000.0 * np.sin(8 * t) ** 2, 100.0 * t]])  # noqa: E731  speed 0..~24000 px/s
+    times = motion_bounded_times(proj, 0.0, 0.4, 1.0, 50.0, 2000.0)
+    steps = np.diff(times)
+    assert steps[:-1].min() >= 1 / 2000 * (1 - 1e-9) and steps.max() <= 1 / 50 * (1 + 1e-9)
+    moved = np.array([max_displacement(proj(a), proj(b)) for a, b in zip(times[:-1], times[1:])])
+    # over the bound only where the step is already at the maximum rate
+    assert np.all((moved <= 1.0 + 1e-9) | np.isclose(steps, 1 / 2000))
+    assert (moved > 1.0).any() and (steps > 1 / 1000).any()
+
+
+def test_summary_counts_and_bad_arguments():
+    s = frames_saved_vs_fixed(np.array([0.0, 0.5, 1.0]), 1000.0)
+    assert s == {"rendered": 3, "fixed_rate_hz": 1000.0, "fixed_frames": 1001, "saved_frames": 998,
+                 "saved_fraction": pytest.approx(1 - 3 / 1001)}
+    zero = lambda t: np.zeros((1, 2))  # noqa: E731
+    for kwargs in ({"max_displacement_px": 0}, {"min_rate_hz": 0}, {"min_rate_hz": 500, "max_rate_hz": 100}):
+        with pytest.raises(ValueError):
+            motion_bounded_times(zero, 0.0, 1.0, **kwargs)
+    with pytest.raises(ValueError, match="K, 2"):
+        motion_bounded_times(lambda t: np.zeros(3), 0.0, 1.0)
