@@ -66,7 +66,7 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
                   start: int = 0, max_segments: int = 300, fps: float = 30.0,
                   background: Literal["white", "dark"] = "white") -> Path:
     """Write event frames of segments [start, start+max_segments) with ground truth (green) and other
-    per-segment box tracks (dict name -> (num_segments, 4) xywh) to a .gif or .mp4 at fps frames/s."""
+    per-segment box tracks (dict name -> (n <= num_segments, 4) xywh) to a .gif or .mp4 at fps frames/s."""
     from dvsot.dataset import Dataset
 
     out = Path(out_path)
@@ -77,8 +77,9 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
     try:
         tracks = {name: np.asarray(b, float).reshape(-1, 4) for name, b in (boxes or {}).items()}
         for name, b in tracks.items():
-            if len(b) != ds.num_segments:
-                raise ValueError(f"{ds.path}: box track '{name}' has {len(b)} rows, expected one per segment "
+            # shorter is fine (a benchmark run limited to the first segments); longer is someone else's track
+            if len(b) > ds.num_segments:
+                raise ValueError(f"{ds.path}: box track '{name}' has {len(b)} rows, more than one per segment "
                                  f"({ds.num_segments})")
         legend = [("ground truth", GT_COLOUR)] + [(n, PALETTE[k % len(PALETTE)]) for k, n in enumerate(tracks)]
         frames = []
@@ -87,7 +88,8 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
             img = event_frame(seg.events, ds.width, ds.height, background)
             draw_box(img, seg.box, GT_COLOUR)
             for (name, colour), track in zip(legend[1:], tracks.values()):
-                draw_box(img, track[seg.index], colour)
+                if seg.index < len(track):
+                    draw_box(img, track[seg.index], colour)
             if tracks:  # a lone green box needs no legend; with predictions, say which is which
                 draw_legend(img, legend)
             cv2.putText(img, f"{seg.t1_us / 1000:.0f} ms", (4, ds.height - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4,

@@ -75,7 +75,14 @@ def test_gif_preview_has_one_frame_per_segment_with_boxes(tmp_path):
 def test_preview_rejects_bad_tracks_and_suffixes_and_writes_mp4(tmp_path):
     ds = _tiny_dataset(tmp_path / "tiny.h5")
     with pytest.raises(ValueError, match="one per segment"):
-        write_preview(ds, tmp_path / "x.gif", {"tracker": np.zeros((2, 4))})
+        write_preview(ds, tmp_path / "x.gif", {"tracker": np.zeros((4, 4))})
+    # a track of the first segments only (a limited benchmark run) is drawn where it exists
+    short = write_preview(ds, tmp_path / "short.gif", {"tracker": np.array([[60, 30, 6, 6]], float)})
+    with Image.open(short) as im:
+        first = np.asarray(im.convert("RGB")).astype(int)
+        im.seek(2)
+        last = np.asarray(im.convert("RGB")).astype(int)
+    assert np.abs(first[30, 62] - PALETTE[0]).sum() < 60 and (last[30, 62] > 230).all()
     with pytest.raises(ValueError, match="gif or .mp4"):
         write_preview(ds, tmp_path / "x.png")
     with pytest.raises(ValueError, match="no segments"):
