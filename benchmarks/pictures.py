@@ -1,9 +1,9 @@
-"""Pictures of a benchmark run: IoU over time per sequence and tracker, and tracking videos.
+"""Pictures of a benchmark run: IoU over time per sequence and tracker.
 
 `plot_iou_over_time` takes the simplest form of the per-segment results: {tracker: {sequence: IoU
 array}}, one value per segment, NaN for segments that do not count (initialisation segments, segments
-without ground truth). `write_tracking_video` draws predicted and ground-truth boxes over event frames
-through `dvsot.preview`.
+without ground truth). Tracking videos (event frames with the
+ground-truth and predicted boxes) are `dvsot.preview.write_preview`, which `dvsot bench --video` calls.
 """
 
 from __future__ import annotations

@@ -61,3 +61,26 @@ def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale
     flat = ((step[ok] * 2 + events.p[ok].astype(np.int64)) * hgt + v[ok]) * wid + u[ok]
     out.view(-1)[torch.from_numpy(np.unique(flat))] = 1.0
     return out
+
+
+def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_box_xywh: np.ndarray, stride: int,
+                  size: int = 107, steps: int = 10, step_us: int = 1000) -> tuple[torch.Tensor, torch.Tensor,
+                                                                                  torch.Tensor]:
+    """Fast-mode input: one region holding every candidate's canvas, at the reference box's canvas scale.
+
+    Returns the region's input spikes (1, steps, 2, H, W), each candidate canvas's top-left corner in
+    region pixels (N, 2) and each candidate box in region pixels (N, 4). The region's corner sits on
+    the network's total stride (sensor px / scale) so all candidates share one convolution grid.
+    """
+    boxes = np.asarray(boxes_xywh, np.float64).reshape(-1, 4)
+    scale = min(1.0, size / float(max(ref_box_xywh[2], ref_box_xywh[3])))
+    centres = boxes[:, :2] + boxes[:, 2:] / 2
+    half = size / 2 / scale  # sensor px from a canvas centre to its edge
+    x0 = np.floor((centres[:, 0].min() - half) / stride) * stride
+    y0 = np.floor((centres[:, 1].min() - half) / stride) * stride
+    wid = int(np.ceil((centres[:, 0].max() + half - x0) * scale)) + stride
+    hgt = int(np.ceil((centres[:, 1].max() + half - y0) * scale)) + stride
+    region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), steps, step_us)
+    origins = ((centres - [x0, y0]) * scale - size / 2).astype(np.float32)
+    rboxes = np.concatenate([(boxes[:, :2] - [x0, y0]) * scale, boxes[:, 2:] * scale], axis=1).astype(np.float32)
+    return region, torch.from_numpy(origins), torch.from_numpy(rboxes)

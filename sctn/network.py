@@ -121,7 +121,8 @@ class SCTN(nn.Module):
             stride *= st
         return stride, rf
 
-    def forward_search(self, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
+    def forward_search(self, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
+                       record: bool = False) -> torch.Tensor | tuple[torch.Tensor, list[torch.Tensor]]:
         """Fast mode: convolutions once over a search region, then per candidate a crop into the FC layers.
 
         region (1, T, 2, Hs, Ws) input spikes of all events in the region (not masked per box);
@@ -129,7 +130,8 @@ class SCTN(nn.Module):
         boxes (N, 4) each candidate box in region pixels (xywh). The crop of the last convolution's
         spikes is bilinear at sub-cell offsets; cells whose receptive-field centre lies outside the
         candidate box are zeroed, standing in for the per-box masking of the input.
-        Returns voltages (N, T + tail, 2).
+        Returns voltages (N, T + tail, 2); with record=True also the region's input and conv spikes
+        (each (T, 1, C, H, W)), the crops fed to fc1 (T, N, fc1 inputs) and the fc spikes (T, N, width).
         """
         cfg = self.cfg
         x = region
@@ -137,9 +139,11 @@ class SCTN(nn.Module):
             x = torch.cat([x, x.new_zeros((1, cfg.tail_steps) + x.shape[2:])], dim=1)
         t = x.shape[1]
         h = x.transpose(0, 1)
+        recorded = [h]
         for conv, neuron in zip(self.convs, self.neurons[:3]):
             cur = conv(h.reshape((t,) + h.shape[2:]))
             h, _ = neuron(cur.view((t, 1) + cur.shape[1:]))
+            recorded.append(h)
         feat = h[:, 0]  # (T, C, fh, fw)
         c, fh, fw = feat.shape[1:]
         n_cells = cfg.conv_sizes()[-1]
@@ -147,22 +151,27 @@ class SCTN(nn.Module):
         n = origins.shape[0]
         cell = torch.arange(n_cells, dtype=torch.float32)
         # feature-map coordinates of each candidate's cells; grid_sample wants [-1, 1] (align_corners=True)
-        gx = origins[:, 0:1] / stride + cell  # (N, n_cells)
-        gy = origins[:, 1:2] / stride + cell
-        grid = torch.stack([gx[:, None, :].expand(n, n_cells, n_cells) / max(fw - 1, 1) * 2 - 1,
-                            gy[:, :, None].expand(n, n_cells, n_cells) / max(fh - 1, 1) * 2 - 1], dim=-1)
-        src = feat.reshape(1, t * c, fh, fw).expand(n, -1, -1, -1)
-        crops = nn.functional.grid_sample(src, grid, mode="bilinear", padding_mode="zeros", align_corners=True)
+        gx = (origins[:, 0:1] / stride + cell) / max(fw - 1, 1) * 2 - 1  # (N, n_cells)
+        gy = (origins[:, 1:2] / stride + cell) / max(fh - 1, 1) * 2 - 1
         centre_x = origins[:, 0:1] + stride * cell + rf / 2  # region px of each cell's receptive-field centre
         centre_y = origins[:, 1:2] + stride * cell + rf / 2
         in_x = (centre_x >= boxes[:, 0:1]) & (centre_x < boxes[:, 0:1] + boxes[:, 2:3])
         in_y = (centre_y >= boxes[:, 1:2]) & (centre_y < boxes[:, 1:2] + boxes[:, 3:4])
-        mask = (in_y[:, :, None] & in_x[:, None, :]).to(crops.dtype)  # (N, rows, cols)
-        crops = crops.view(n, t, c, n_cells, n_cells) * mask[:, None, None]
-        h = crops.transpose(0, 1).reshape(t, n, -1)
+        # masked cells sample far outside the map, where zero padding gives exactly 0: masking for free
+        gx = torch.where(in_x, gx, torch.full_like(gx, -4.0))
+        gy = torch.where(in_y, gy, torch.full_like(gy, -4.0))
+        grid = torch.stack([gx[:, None, :].expand(n, n_cells, n_cells), gy[:, :, None].expand(n, n_cells, n_cells)],
+                           dim=-1).reshape(1, n * n_cells, n_cells, 2)
+        # one sampling pass per step with the candidates stacked along the rows: the output is already
+        # time-major, (T, C, N * rows, cols), so only a cheap (C, N) swap precedes the product
+        crops = nn.functional.grid_sample(feat, grid.expand(t, -1, -1, -1), mode="bilinear", padding_mode="zeros",
+                                          align_corners=True)
+        h = crops.view(t, c, n, n_cells * n_cells).transpose(1, 2).reshape(t, n, -1)
+        recorded.append(h)
         for fc, neuron in zip(self.fcs, self.neurons[3:]):
             h, v = neuron(fc(h))
-        return v.transpose(0, 1)
+            recorded.append(h)
+        return (v.transpose(0, 1), recorded) if record else v.transpose(0, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Output voltages (B, T + tail, 2) for input spikes x (B, T, 2, H, W); index 1 is the target neuron."""

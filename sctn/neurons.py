@@ -95,6 +95,8 @@ class CLIF(nn.Module):
         d_m, d_s = torch.exp(-1.0 / a_m), torch.exp(-1.0 / a_s)
         v0 = kernel_norm(d_m, d_s, a_m, a_s).view(shape)
         d_m, d_s = d_m.view(shape), d_s.view(shape)
+        if not (torch.is_grad_enabled() and (current.requires_grad or self.p_m.requires_grad)):
+            return self._infer(current, d_m, d_s, v0)
         m = torch.zeros_like(current[0])
         s = torch.zeros_like(current[0])
         r = torch.zeros_like(current[0])
@@ -109,3 +111,23 @@ class CLIF(nn.Module):
             spikes.append(spike)
             volts.append(v)
         return torch.stack(spikes), torch.stack(volts)
+
+    def _infer(self, current: torch.Tensor, d_m: torch.Tensor, d_s: torch.Tensor,
+               v0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The same recurrence without autograd, in place into preallocated outputs (tracking's hot path)."""
+        volts = torch.empty_like(current)
+        spikes = torch.empty_like(current)
+        m = torch.zeros_like(current[0])
+        s = torch.zeros_like(current[0])
+        r = torch.zeros_like(current[0])
+        for n in range(current.shape[0]):
+            m.add_(current[n]).mul_(d_m)
+            s.add_(current[n]).mul_(d_s)
+            if n:
+                r.add_(spikes[n - 1])
+            r.mul_(d_m)
+            v = volts[n]
+            torch.sub(m, s, out=v)
+            v.mul_(v0).sub_(r, alpha=self.theta)
+            spikes[n].copy_(v >= self.theta)
+        return spikes, volts

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from dvsot.events import EventBatch
-from sctn.encoding import encode_boxes, encode_region
+from sctn.encoding import encode_boxes, encode_search
 from sctn.network import SCTN
 from sctn.samples import TRACK, SampleSpec, propose
 from sctn.train import finetune
@@ -49,6 +49,7 @@ class SCTNTracker:
         self.image_wh = (0, 0)
         self.tuned = False
         self.last_stats: dict = {}
+        self.last_search: tuple[np.ndarray, np.ndarray] | None = None
 
     def init(self, events: EventBatch, t0_us: int, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time."""
@@ -76,23 +77,15 @@ class SCTNTracker:
                 v = torch.cat([self.model(encode_boxes(events, t0_us, boxes[i:i + 64], cfg.input_size, cfg.steps,
                                                        cfg.step_us)) for i in range(0, len(boxes), 64)])
                 return v[:, :, 1].max(dim=1).values.numpy()
-            scale = min(1.0, cfg.input_size / float(max(self.box[2], self.box[3])))
-            centres = boxes[:, :2] + boxes[:, 2:] / 2
-            half = cfg.input_size / 2 / scale  # sensor px from a canvas centre to its edge
-            stride, _ = self.model.receptive_field()
-            x0 = np.floor((centres[:, 0].min() - half) / stride) * stride
-            y0 = np.floor((centres[:, 1].min() - half) / stride) * stride
-            wid = int(np.ceil((centres[:, 0].max() + half - x0) * scale)) + stride
-            hgt = int(np.ceil((centres[:, 1].max() + half - y0) * scale)) + stride
-            region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), cfg.steps, cfg.step_us)
-            origins = torch.from_numpy(((centres - [x0, y0]) * scale - cfg.input_size / 2).astype(np.float32))
-            rboxes = np.concatenate([(boxes[:, :2] - [x0, y0]) * scale, boxes[:, 2:] * scale], axis=1)
-            v = self.model.forward_search(region, origins, torch.from_numpy(rboxes.astype(np.float32)))
+            region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field()[0],
+                                                    cfg.input_size, cfg.steps, cfg.step_us)
+            v = self.model.forward_search(region, origins, rboxes)
             return v[:, :, 1].max(dim=1).values.numpy()
 
     def track(self, events: EventBatch, t0_us: int) -> np.ndarray:
         """The target's box (4,) xywh pixels at the end of this segment."""
         boxes = self.candidates()
+        self.last_search = (boxes, self.box.copy())  # what was scored, for energy accounting
         scores = self.score(events, t0_us, boxes)
         top = np.argsort(-scores, kind="stable")[: self.top_k]
         vstar = float(scores[top].mean())

@@ -8,7 +8,7 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_region
-from sctn.energy import ann_macs, conv_fanout, count_synaptic_ops, energy_pj
+from sctn.energy import ann_macs, conv_fanout, count_search_ops, count_synaptic_ops, energy_pj
 from sctn.loss import feedback, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import CLIF, psp_kernel
@@ -111,7 +111,7 @@ def test_fast_search_matches_per_candidate_evaluation_on_aligned_full_boxes():
 
 
 def test_energy_counts_on_a_hand_made_spike_pattern():
-    cfg = NetworkConfig()
+    cfg = NetworkConfig(channels=(8, 16, 16), fc=(64, 32))
     net = SCTN(cfg)
     with torch.no_grad():  # silence everything after the input: only input spikes cost
         for layer in list(net.convs) + list(net.fcs):
@@ -130,3 +130,18 @@ def test_energy_counts_on_a_hand_made_spike_pattern():
     by_hand = 8 * 2 * 16 * 26 * 26 + 16 * 8 * 9 * 12 * 12 + 16 * 16 * 9 * 10 * 10 + 1600 * 64 + 64 * 32 + 32 * 2
     assert macs == by_hand
     assert energy_pj(10, 2)["energy_pj"] == pytest.approx(10 * 0.9 + 2 * 4.6)
+
+
+def test_search_ops_of_one_aligned_candidate_equal_the_per_candidate_count():
+    torch.manual_seed(2)
+    net = SCTN()
+    x = (torch.rand(1, 10, 2, 107, 107) < 0.05).float()
+    net.calibrate(x)
+    per = count_synaptic_ops(net, x)
+    search = count_search_ops(net, x, torch.zeros(1, 2), torch.tensor([[0.0, 0.0, 107.0, 107.0]]))
+    for layer in ("input", "conv1", "conv2", "fc1", "fc2"):
+        assert search["ac_ops_by_layer"][layer] == pytest.approx(per["ac_ops_by_layer"][layer])
+    # conv3's spikes reach fc1 as (here exact, integer-aligned) crops, counted as MACs
+    assert per["ac_ops_by_layer"]["conv3"] > 0
+    assert search["mac_ops"] == pytest.approx(per["ac_ops_by_layer"]["conv3"])
+    assert search["energy_pj"] == pytest.approx(search["ac_ops"] * 0.9 + search["mac_ops"] * 4.6)

@@ -40,15 +40,22 @@ class SCTNBenchTracker(Tracker):
         return box
 
     def _count(self, segment: Segment, box: np.ndarray) -> dict:
-        from sctn.encoding import encode_boxes
-        from sctn.energy import E_AC_PJ, count_synaptic_ops
+        """Operations of the segment just tracked: the search actually run (fast) or per-candidate evaluations."""
+        from sctn.encoding import encode_boxes, encode_search
+        from sctn.energy import E_AC_PJ, count_search_ops, count_synaptic_ops
 
-        cfg = self.tracker.model.cfg
+        model, cfg = self.tracker.model, self.tracker.model.cfg
+        candidates, ref_box = self.tracker.last_search
+        if self.tracker.fast:
+            inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, model.receptive_field()[0],
+                                   cfg.input_size, cfg.steps, cfg.step_us)
+            ops = count_search_ops(model, *inputs)
+            return {"ac_ops": ops["ac_ops"], "mac_ops": ops["mac_ops"], "energy_pj": ops["energy_pj"]}
         x = encode_boxes(segment.events, segment.t0_us, box[None], cfg.input_size, cfg.steps, cfg.step_us)
-        ops = count_synaptic_ops(self.tracker.model, x)["ac_ops_per_sample"]
-        # per segment: one network evaluation per candidate (the paper-faithful count)
+        ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
+        # one network evaluation per candidate; the tracked box's input stands for each of them
         total = ops * self.tracker.n_candidates
-        return {"ac_ops_per_candidate": ops, "ac_ops": total, "energy_pj": total * E_AC_PJ}
+        return {"ac_ops_per_candidate": ops, "ac_ops": total, "mac_ops": 0.0, "energy_pj": total * E_AC_PJ}
 
     def energy_per_segment(self) -> dict | None:
         """AC operations and pJ of the last counted segment."""

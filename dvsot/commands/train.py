@@ -22,6 +22,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--loss", choices=["exp", "linear", "basic"], default="exp")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-minutes", type=float, default=None, help="stop after this much training time")
+    p.add_argument("--channels", type=int, nargs=3, metavar="C", default=None,
+                   help="output channels of the three convolutions (default: sctn.network.NetworkConfig)")
+    p.add_argument("--fc", type=int, nargs=2, metavar="N", default=None,
+                   help="widths of the two hidden fully connected layers (default: sctn.network.NetworkConfig)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("--quiet", action="store_true")
 
@@ -36,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from dvsot.dataset import find_datasets
     from dvsot.errors import UserError
     from sctn.checkpoint import save_checkpoint
+    from sctn.network import NetworkConfig
     from sctn.train import TrainConfig, provenance, train
 
     for name in ("epochs", "segments_per_epoch", "batch_segments"):
@@ -43,6 +48,13 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--{name.replace('_', '-')} must be >= 1")
     if args.lr <= 0:
         raise UserError("--lr must be positive")
+    net = {}
+    for name in ("channels", "fc"):
+        sizes = getattr(args, name)
+        if sizes is not None:
+            if min(sizes) < 1:
+                raise UserError(f"--{name} sizes must be >= 1, got {' '.join(map(str, sizes))}")
+            net[name] = tuple(sizes)
     out = Path(args.output)
     if not out.parent.is_dir():
         raise UserError(f"{out}: output directory {out.parent} does not exist")
@@ -51,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     cfg = TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
                       batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
-                      max_minutes=args.max_minutes)
+                      max_minutes=args.max_minutes, network=NetworkConfig(**net))
     try:
         model, history = train(files, cfg, progress=not args.quiet)
     except ValueError as exc:
