@@ -196,6 +196,8 @@ class Render(Strict):
     threads: int = Field(0, ge=0, description="0 = all cores")
     max_bounces: int = Field(2, ge=0, le=32)
     persistent_data: bool = True
+    amodal_mask: Literal["raster", "render"] = Field(
+        "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
 
 
 class Sampling(Strict):
