@@ -198,6 +198,8 @@ class Render(Strict):
     persistent_data: bool = True
     amodal_mask: Literal["raster", "render"] = Field(
         "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
+    specular: bool = Field(
+        True, description="false: matte materials (no specular layer of the Principled BSDF); ~25% faster, duller look")
 
 
 class Sampling(Strict):
