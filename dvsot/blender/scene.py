@@ -1,7 +1,7 @@
 """Everything that touches bpy: build a scene from a SceneConfig, pose it at a time, render intensity and masks.
 
-One render call gives three images, read back from a multilayer EXR written under /dev/shm (the
-render result cannot be read from memory in background mode):
+One render call gives three images; the rendered ones are read back from a multilayer EXR written
+under /dev/shm (the render result cannot be read from memory in background mode):
 
 * view layer "main": the whole scene; Combined -> linear-light luma (Rec. 709), Object Index ->
   the *visible* target mask (occluders in front hide it);
