@@ -85,3 +85,30 @@ def test_generate_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
     assert main(["generate", str(scene(tmp_path)), "-o", str(out), "--resolution", "big"]) == 2
     assert main(["generate", str(scene(tmp_path)), "-o", str(tmp_path / "nodir" / "o.h5")]) == 2
     assert not out.exists() and not (tmp_path / "nodir").exists()
+
+
+def test_direct_shading_gives_the_closed_form_lambert_radiance(tmp_path):
+    from dvsot.blender import BlenderScene
+
+    text = SCENE.format(duration=0.02, x0=100.0, x1=100.0, shake=0.0, texture="null")
+    text = text.replace("texture: null, emission: 0.3", "texture: null").replace("[0.1, 0.1, 0.1], texture", "[0.5, 0.4, 0.2], texture")
+    text = text.replace("lights: []", "lights: [{type: sun, strength: 2.0, rotation_deg: [60, 0, 0]}]")
+    text = text.replace("world: {color: [0.5, 0.5, 0.5], strength: 1.0}", "world: {color: [0.1, 0.1, 0.1], strength: 1.0}")
+    cfg = parse_scene(text.replace("render: {threads: 2}", "render: {threads: 2, shading: direct}"))
+    with BlenderScene(cfg) as sc:
+        luma, amodal, _ = sc.render(0.0)
+    # the wall faces the camera (normal -y); the sun at 60 deg about x lies along (0, -sin 60, cos 60)
+    irradiance = 2.0 * np.sin(np.radians(60)) / np.pi + 0.1
+    expected = float(np.array([0.5, 0.4, 0.2]) @ [0.2126, 0.7152, 0.0722]) * irradiance
+    assert not amodal.any()
+    np.testing.assert_allclose(luma, expected, rtol=1e-3)
+
+
+def test_direct_shading_refuses_point_and_area_lights():
+    from dvsot.errors import UserError
+
+    text = SCENE.format(duration=0.02, x0=0.0, x1=0.0, shake=0.0, texture="null")
+    text = text.replace("lights: []", "lights: [{type: point, strength: 100}]")
+    with pytest.raises(UserError, match=r"lights\[0\]\.type"):
+        parse_scene(text.replace("render: {threads: 2}", "render: {threads: 2, shading: direct}"))
+    parse_scene(text)  # path shading takes any light

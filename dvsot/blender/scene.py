@@ -187,6 +187,49 @@ def _mesh_object(name: str, obj: SceneObject, collection) -> bpy.types.Object:
     return ob
 
 
+def _direct_lighting(mat: bpy.types.Material, suns: list[tuple[tuple, tuple]], ambient: tuple) -> None:
+    """Rewire a material to render.shading 'direct': an emission of albedo x (ambient + sum over suns of
+    E_sun max(0, N.L) / pi), plus its own emission. That is the radiance of a Lambertian surface lit by
+    the suns (irradiance E_sun, direction L to the sun) and a uniform world, without shadows or bounces."""
+    nt = mat.node_tree
+    bsdf = next(n for n in nt.nodes if n.type == "BSDF_PRINCIPLED")
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+
+    def vmath(op: str, a, b=None):
+        node = nt.nodes.new("ShaderNodeVectorMath")
+        node.operation = op
+        for sock, val in ((node.inputs[0], a), (node.inputs[1], b)):
+            if isinstance(val, tuple):
+                sock.default_value = val
+            elif val is not None:
+                nt.links.new(val, sock)
+        return node
+
+    geometry = nt.nodes.new("ShaderNodeNewGeometry")
+    light = vmath("ADD", ambient, (0.0, 0.0, 0.0)).outputs["Vector"]
+    for direction, irradiance in suns:
+        cos = nt.nodes.new("ShaderNodeMath")
+        cos.operation = "MAXIMUM"
+        nt.links.new(vmath("DOT_PRODUCT", geometry.outputs["Normal"], direction).outputs["Value"], cos.inputs[0])
+        cos.inputs[1].default_value = 0.0
+        term = vmath("SCALE", irradiance)
+        nt.links.new(cos.outputs[0], term.inputs["Scale"])
+        light = vmath("ADD", light, term.outputs["Vector"]).outputs["Vector"]
+    base = bsdf.inputs["Base Color"]
+    albedo = base.links[0].from_socket if base.links else tuple(base.default_value)[:3]
+    radiance = vmath("MULTIPLY", albedo, light).outputs["Vector"]
+    strength = bsdf.inputs["Emission Strength"].default_value
+    if strength > 0:
+        ecol = bsdf.inputs["Emission Color"]
+        own = vmath("SCALE", ecol.links[0].from_socket if ecol.links else tuple(ecol.default_value)[:3])
+        own.inputs["Scale"].default_value = strength
+        radiance = vmath("ADD", radiance, own.outputs["Vector"]).outputs["Vector"]
+    emission = nt.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 1.0
+    nt.links.new(radiance, emission.inputs["Color"])
+    nt.links.new(emission.outputs["Emission"], out.inputs["Surface"])
+
+
 class BlenderScene:
     """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask)."""
 
@@ -227,7 +270,7 @@ class BlenderScene:
         if cfg.background.kind == "plane":
             materials.append(cfg.background.material)
         sc.cycles.use_light_tree = len(cfg.lights) + sum(m.emission > 0 for m in materials) > 1
-        sc.cycles.max_bounces = r.max_bounces
+        sc.cycles.max_bounces = 0 if r.shading == "direct" else r.max_bounces  # direct: emission only
         for attr in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
                      "transparent_max_bounces"):
             setattr(sc.cycles, attr, min(getattr(sc.cycles, attr), max(r.max_bounces, 1)))
@@ -277,7 +320,10 @@ class BlenderScene:
         self.others = [(_mesh_object(o.name or f"{o.role}_{i}", o, self.collections["others"]), o)
                        for i, o in enumerate(cfg.objects)]
         self._background(cfg.background)
+        direct = cfg.render.shading == "direct"
         for i, light in enumerate(cfg.lights):
+            if direct:  # the suns live in the materials' shaders (_direct_lighting)
+                continue
             data = bpy.data.lights.new(f"light_{i}", light.type.upper())
             data.energy = light.strength
             data.color = light.color
@@ -301,6 +347,16 @@ class BlenderScene:
             colour = _texture_colour(nt, cfg.background.material.texture or Texture(type="noise"),
                                      coords.outputs["Generated"])
             nt.links.new(colour, bg.inputs["Color"])
+        if direct:
+            from mathutils import Euler, Vector
+
+            # a sun shines along its local -Z: the direction to it is +Z rotated
+            suns = [(tuple(Euler([float(a) for a in np.radians(light.rotation_deg)], "XYZ").to_matrix()
+                           @ Vector((0.0, 0.0, 1.0))),
+                     tuple(light.strength * np.asarray(light.color) / np.pi)) for light in cfg.lights]
+            ambient = tuple(float(c) * cfg.world.strength for c in cfg.world.color)
+            for mat in bpy.data.materials:
+                _direct_lighting(mat, suns, ambient)
         main = sc.view_layers[0]
         main.name = "main"
         main.use_pass_object_index = True
@@ -367,11 +423,6 @@ class BlenderScene:
         rgba = channels["main.Combined"].pixels
         luma = rgba[..., :3] @ _LUMA
         visible = np.rint(channels["main.Object Index.X"].pixels) == TARGET_INDEX
-        if not self.cfg.render.specular:  # matte: Cycles skips a closure whose weight is zero
-            for mat in bpy.data.materials:
-                for node in mat.node_tree.nodes if mat.node_tree else ():
-                    if node.type == "BSDF_PRINCIPLED":
-                        node.inputs["Specular IOR Level"].default_value = 0.0
         if self.cfg.render.amodal_mask == "render":
             amodal = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
         else:
