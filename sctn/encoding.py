@@ -47,10 +47,11 @@ def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: i
 
 
 def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale: float, size_hw: tuple[int, int],
-                  steps: int = 10, step_us: int = 1000) -> torch.Tensor:
-    """Binary input (1, steps, 2, H, W) of every event inside a sensor region, scaled by `scale` (canvas px per px)."""
+                  steps: int = 10, step_us: int = 1000, tail_steps: int = 0) -> torch.Tensor:
+    """Binary input (1, steps + tail_steps, 2, H, W) of every event inside a sensor region, scaled by `scale`
+    (canvas px per px); the tail steps stay empty."""
     hgt, wid = size_hw
-    out = torch.zeros((1, steps, 2, hgt, wid), dtype=torch.float32)
+    out = torch.zeros((1, steps + tail_steps, 2, hgt, wid), dtype=torch.float32)
     if len(events) == 0:
         return out
     step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us
@@ -64,11 +65,11 @@ def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale
 
 
 def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_box_xywh: np.ndarray, stride: int,
-                  size: int = 107, steps: int = 10, step_us: int = 1000) -> tuple[torch.Tensor, torch.Tensor,
-                                                                                  torch.Tensor]:
+                  size: int = 107, steps: int = 10, step_us: int = 1000,
+                  tail_steps: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Fast-mode input: one region holding every candidate's canvas, at the reference box's canvas scale.
 
-    Returns the region's input spikes (1, steps, 2, H, W), each candidate canvas's top-left corner in
+    Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's top-left corner in
     region pixels (N, 2) and each candidate box in region pixels (N, 4). The region's corner sits on
     the network's total stride (sensor px / scale) so all candidates share one convolution grid.
     """
@@ -80,7 +81,7 @@ def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_bo
     y0 = np.floor((centres[:, 1].min() - half) / stride) * stride
     wid = int(np.ceil((centres[:, 0].max() + half - x0) * scale)) + stride
     hgt = int(np.ceil((centres[:, 1].max() + half - y0) * scale)) + stride
-    region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), steps, step_us)
+    region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), steps, step_us, tail_steps)
     origins = ((centres - [x0, y0]) * scale - size / 2).astype(np.float32)
     rboxes = np.concatenate([(boxes[:, :2] - [x0, y0]) * scale, boxes[:, 2:] * scale], axis=1).astype(np.float32)
     return region, torch.from_numpy(origins), torch.from_numpy(rboxes)

@@ -54,30 +54,32 @@ def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
             "energy_pj_per_sample": total * E_AC_PJ}
 
 
-def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor) -> dict:
+def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
+                     crop: str = "nearest") -> dict:
     """Operations of one fast-mode search (SCTN.forward_search) over N candidates: a whole segment's cost.
 
-    The convolutions run once over the region, so their ACs are counted once; each nonzero crop value
-    fed to fc1 drives fc1's width of synapses, but crops are bilinear mixes of spikes (fractional), so
-    those count as MACs, not ACs; fc1 and fc2 spikes are ACs per candidate as in count_synaptic_ops.
+    What actually runs is counted: the convolutions once over the region (each spike times its
+    fan-out); each distinct integer crop once, its conv3 spikes driving fc1's width of synapses (ACs);
+    fc1 and fc2 spikes per evaluated candidate (ACs); with crop="bilinear" also the multiply-adds that
+    mix up to four crops' fc1 sums per candidate (MACs).
     """
     with torch.no_grad():
-        _, rec = model.forward_search(region, origins, boxes, record=True)
+        _, rec = model.forward_search(region, origins, boxes, record=True, crop=crop)
     ops: dict[str, float] = {}
     h, w = region.shape[-2:]
-    for k in range(3):
+    for k, name in enumerate(LAYER_NAMES[:3]):
         fan = conv_fanout(model.convs[k], (h, w))
-        ops[LAYER_NAMES[k]] = float((rec[k][:, 0].sum(dim=0) * fan).sum())
+        ops[name] = float((rec[name][:, 0].sum(dim=0) * fan).sum())
         h = (h - model.cfg.kernels[k]) // model.cfg.strides[k] + 1
         w = (w - model.cfg.kernels[k]) // model.cfg.strides[k] + 1
-    fc1_macs = float((rec[4] > 1e-6).sum()) * model.fcs[0].out_features  # above float round-off of the grid
-    ops["conv3"] = 0.0  # conv3's spikes reach fc1 only through the crops (counted as MACs)
-    ops["fc1"] = float(rec[5].sum()) * model.fcs[1].out_features
-    ops["fc2"] = float(rec[6].sum()) * model.fcs[2].out_features
+    ops["conv3"] = float(rec["crops"].sum()) * model.fcs[0].out_features  # binary crops: one AC per synapse
+    ops["fc1"] = float(rec["fc1"].sum()) * model.fcs[1].out_features
+    ops["fc2"] = float(rec["fc2"].sum()) * model.fcs[2].out_features
     ops["output"] = 0.0
     ac = sum(ops.values())
-    return {"candidates": int(origins.shape[0]), "ac_ops": ac, "ac_ops_by_layer": ops, "mac_ops": fc1_macs,
-            "energy_pj": ac * E_AC_PJ + fc1_macs * E_MAC_PJ}
+    macs = rec["mix_macs"]
+    return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]), "ac_ops": ac,
+            "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ}
 
 
 def ann_macs(cfg: NetworkConfig, steps: int = 1) -> dict:

@@ -122,56 +122,107 @@ class SCTN(nn.Module):
         return stride, rf
 
     def forward_search(self, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
-                       record: bool = False) -> torch.Tensor | tuple[torch.Tensor, list[torch.Tensor]]:
+                       record: bool = False, crop: str = "nearest"
+                       ) -> torch.Tensor | tuple[torch.Tensor, dict]:
         """Fast mode: convolutions once over a search region, then per candidate a crop into the FC layers.
 
-        region (1, T, 2, Hs, Ws) input spikes of all events in the region (not masked per box);
-        origins (N, 2) each candidate canvas's top-left corner in region pixels (x, y);
-        boxes (N, 4) each candidate box in region pixels (xywh). The crop of the last convolution's
-        spikes is bilinear at sub-cell offsets; cells whose receptive-field centre lies outside the
-        candidate box are zeroed, standing in for the per-box masking of the input.
-        Returns voltages (N, T + tail, 2); with record=True also the region's input and conv spikes
-        (each (T, 1, C, H, W)), the crops fed to fc1 (T, N, fc1 inputs) and the fc spikes (T, N, width).
+        region (1, T, 2, Hs, Ws) input spikes of all events in the region (not masked per box), T =
+        steps or steps + tail_steps (then the tail is already there, zero); origins (N, 2) each
+        candidate canvas's top-left corner in region pixels (x, y); boxes (N, 4) each candidate box in
+        region pixels (xywh). Each candidate reads the cells of conv3's spike map under its canvas:
+        crop="nearest" snaps the canvas to the nearest cell; crop="bilinear" interpolates at its
+        sub-cell offset, computed exactly as the bilinear mix of fc1's products with the (up to four)
+        integer-cell crops around it, so fc1 always receives spikes. Cells whose receptive-field centre
+        lies outside the candidate box are zeroed, standing in for the per-box masking of the input.
+        Integer crops at the same cell with the same mask are evaluated once. Returns voltages
+        (N, T + tail, 2); with record=True also a dict of what ran: "input", "conv1".."conv3" spikes
+        over the region (T, 1, C, H, W), "crops" (T, U, inputs) the U distinct crops fed to fc1,
+        "fc1", "fc2" spikes (T, N or U, width) and "mix_macs", the multiply-adds of the bilinear mix.
         """
+        if crop not in ("bilinear", "nearest"):
+            raise ValueError(f"crop must be 'bilinear' or 'nearest', got {crop!r}")
         cfg = self.cfg
         x = region
-        if cfg.tail_steps:
+        if x.shape[1] == cfg.steps and cfg.tail_steps:
             x = torch.cat([x, x.new_zeros((1, cfg.tail_steps) + x.shape[2:])], dim=1)
         t = x.shape[1]
-        h = x.transpose(0, 1)
-        recorded = [h]
-        for conv, neuron in zip(self.convs, self.neurons[:3]):
-            cur = conv(h.reshape((t,) + h.shape[2:]))
-            h, _ = neuron(cur.view((t, 1) + cur.shape[1:]))
-            recorded.append(h)
-        feat = h[:, 0]  # (T, C, fh, fw)
+        h = x[0]
+        rec: dict = {"input": h[:, None]}
+        for name, conv, neuron in zip(("conv1", "conv2", "conv3"), self.convs, self.neurons[:3]):
+            h, _ = neuron(_conv_active_steps(conv, h)[:, None])
+            h = h[:, 0]
+            rec[name] = h[:, None]
+        feat = h  # (T, C, fh, fw)
         c, fh, fw = feat.shape[1:]
         n_cells = cfg.conv_sizes()[-1]
         stride, rf = self.receptive_field()
         n = origins.shape[0]
         cell = torch.arange(n_cells, dtype=torch.float32)
-        # feature-map coordinates of each candidate's cells; grid_sample wants [-1, 1] (align_corners=True)
-        gx = (origins[:, 0:1] / stride + cell) / max(fw - 1, 1) * 2 - 1  # (N, n_cells)
-        gy = (origins[:, 1:2] / stride + cell) / max(fh - 1, 1) * 2 - 1
         centre_x = origins[:, 0:1] + stride * cell + rf / 2  # region px of each cell's receptive-field centre
         centre_y = origins[:, 1:2] + stride * cell + rf / 2
-        in_x = (centre_x >= boxes[:, 0:1]) & (centre_x < boxes[:, 0:1] + boxes[:, 2:3])
+        in_x = (centre_x >= boxes[:, 0:1]) & (centre_x < boxes[:, 0:1] + boxes[:, 2:3])  # (N, cells)
         in_y = (centre_y >= boxes[:, 1:2]) & (centre_y < boxes[:, 1:2] + boxes[:, 3:4])
-        # masked cells sample far outside the map, where zero padding gives exactly 0: masking for free
-        gx = torch.where(in_x, gx, torch.full_like(gx, -4.0))
-        gy = torch.where(in_y, gy, torch.full_like(gy, -4.0))
-        grid = torch.stack([gx[:, None, :].expand(n, n_cells, n_cells), gy[:, :, None].expand(n, n_cells, n_cells)],
-                           dim=-1).reshape(1, n * n_cells, n_cells, 2)
-        # one sampling pass per step with the candidates stacked along the rows: the output is already
-        # time-major, (T, C, N * rows, cols), so only a cheap (C, N) swap precedes the product
-        crops = nn.functional.grid_sample(feat, grid.expand(t, -1, -1, -1), mode="bilinear", padding_mode="zeros",
-                                          align_corners=True)
-        h = crops.view(t, c, n, n_cells * n_cells).transpose(1, 2).reshape(t, n, -1)
-        recorded.append(h)
-        for fc, neuron in zip(self.fcs, self.neurons[3:]):
-            h, v = neuron(fc(h))
-            recorded.append(h)
-        return (v.transpose(0, 1), recorded) if record else v.transpose(0, 1)
+        first = origins / stride  # feature-map coordinates of each candidate's first cell
+        if crop == "nearest":
+            corners = torch.round(first)[:, None]  # (N, 1, 2)
+            weights = torch.ones(n, 1)
+        else:
+            base = torch.floor(first)
+            fx, fy = (first - base).unbind(1)
+            corners = base[:, None] + torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+            weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], dim=1)
+        k = corners.shape[1]
+        # one integer crop per (candidate, corner) of nonzero weight; equal position and mask = equal crop
+        keys = torch.cat([corners.reshape(n * k, 2), in_x.repeat_interleave(k, 0), in_y.repeat_interleave(k, 0)], 1)
+        used = torch.nonzero(weights.reshape(-1) > 0)[:, 0]
+        _, inverse = torch.unique(keys[used], dim=0, return_inverse=True)
+        u = int(inverse.max()) + 1
+        rep = used[torch.empty(u, dtype=torch.long).scatter_(0, inverse, torch.arange(len(used)))]
+        pos = keys[rep, :2].long()
+        ux, uy = in_x.repeat_interleave(k, 0)[rep], in_y.repeat_interleave(k, 0)[rep]
+        # cells masked for every candidate are zero in every crop: leave them, and their fc1 weights,
+        # out (a box half the canvas wide keeps ~1/4 of the cells)
+        cols = torch.nonzero(in_x.any(dim=0))[:, 0]
+        rows = torch.nonzero(in_y.any(dim=0))[:, 0]
+        nr, nc = len(rows), len(cols)
+        fc1 = self.fcs[0]
+        w1 = fc1.weight.view(-1, c, n_cells, n_cells)[:, :, rows][:, :, :, cols]
+        w1 = w1.permute(0, 2, 3, 1).reshape(fc1.out_features, -1)  # the crops' (row, col, channel) order
+        # steps in which conv3 is silent give fc1 its bias alone
+        active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
+        ta = len(active)
+        crops = torch.zeros(t, u, nr * nc * c)
+        if ta and nr and nc:
+            ys = pos[:, 1:2] + rows  # (U, rows) feature-map row of each kept cell
+            xs = pos[:, 0:1] + cols
+            ok = (uy[:, rows] & (ys >= 0) & (ys < fh))[:, :, None] & (ux[:, cols] & (xs >= 0) & (xs < fw))[:, None]
+            index = torch.where(ok, ys[:, :, None] * fw + xs[:, None, :], fh * fw)  # fh * fw: a zero cell
+            cells = feat[active].permute(0, 2, 3, 1).reshape(ta, fh * fw, c)
+            cells = torch.cat([cells, cells.new_zeros(ta, 1, c)], dim=1)
+            # index_select, not cells[:, index]: the advanced-indexing kernel is ~8x slower here
+            crops[active] = torch.index_select(cells, 1, index.view(-1)).view(ta, u, -1)
+        rec["crops"] = crops
+        products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
+        if ta:
+            products[active] = nn.functional.linear(crops[active], w1)
+        if crop == "nearest":
+            # the fully connected layers see U distinct inputs: run them on those, expand at the end
+            current, expand = products + fc1.bias, inverse
+            rec["mix_macs"] = 0.0
+        else:
+            slot = torch.zeros(n * k, dtype=torch.long)
+            slot[used] = inverse
+            mixed = (products[:, slot.view(n, k)] * weights[None, :, :, None]).sum(dim=2)  # (T, N, width)
+            current, expand = mixed + fc1.bias, None
+            rec["mix_macs"] = float(len(used) * fc1.out_features * ta)
+        h, v = self.neurons[3](current)
+        rec["fc1"] = h
+        h, v = self.neurons[4](self.fcs[1](h))
+        rec["fc2"] = h
+        _, v = self.neurons[5](self.fcs[2](h))
+        if expand is not None:
+            v = v[:, expand]
+        return (v.transpose(0, 1), rec) if record else v.transpose(0, 1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Output voltages (B, T + tail, 2) for input spikes x (B, T, 2, H, W); index 1 is the target neuron."""
@@ -180,3 +231,16 @@ class SCTN(nn.Module):
     def forward_record(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Voltages and every layer's spikes (input first, each (T, B, ...)), for energy accounting."""
         return self._run(x, record=True)
+
+
+def _conv_active_steps(conv: nn.Conv2d, h: torch.Tensor) -> torch.Tensor:
+    """conv over (T, C, H, W), computed only for steps with any input (a silent step gives the bias alone)."""
+    active = torch.nonzero(h.flatten(1).amax(dim=1) != 0)[:, 0]
+    if len(active) == h.shape[0]:
+        return conv(h)
+    ho = (h.shape[2] - conv.kernel_size[0]) // conv.stride[0] + 1
+    wo = (h.shape[3] - conv.kernel_size[1]) // conv.stride[1] + 1
+    out = conv.bias.view(1, -1, 1, 1).expand(h.shape[0], -1, ho, wo).clone()
+    if len(active):
+        out[active] = conv(h[active])
+    return out

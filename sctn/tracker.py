@@ -7,7 +7,9 @@ translation range to its initial value; otherwise it grows by `trans_growth` up 
 
 `fast=True` runs the convolutions once over a search region that holds every candidate and crops
 per candidate before the fully connected layers (SCTN.forward_search); `fast=False` evaluates each
-candidate separately, as in the paper. Fine-tuning happens on the first initialisation of a
+candidate separately, as in the paper. `crop` picks the fast mode's sampling of the conv3 map per
+candidate: the nearest cell (default: fc1 gets spikes, and candidates with the same cell and mask
+share one evaluation) or bilinear at the candidate's sub-cell offset (fc1 gets fractions). Fine-tuning happens on the first initialisation of a
 sequence only; a later re-initialisation (after a failure) resets the box and the range. A fixed
 seed gives the same candidates, hence the same track.
 """
@@ -33,14 +35,16 @@ class SCTNTracker:
     def __init__(self, model: SCTN | str | os.PathLike | None = None, seed: int = 0, fast: bool = True,
                  finetune_iters: int = 10, n_candidates: int = TRACK.n, trans: float = TRACK.trans,
                  trans_growth: float = 1.5, trans_max: float = 1.5, vstar_threshold: float = 0.2,
-                 top_k: int = 3) -> None:
+                 top_k: int = 3, crop: str = "nearest") -> None:
         if model is None or isinstance(model, (str, os.PathLike)):
             from sctn.checkpoint import load_checkpoint
 
             model, _ = load_checkpoint(model)
         self.base = model
         self.model: SCTN = model
-        self.seed, self.fast, self.finetune_iters = seed, fast, finetune_iters
+        if crop not in ("bilinear", "nearest"):
+            raise ValueError(f"crop must be 'bilinear' or 'nearest', got {crop!r}")
+        self.seed, self.fast, self.finetune_iters, self.crop = seed, fast, finetune_iters, crop
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = n_candidates, trans, trans_growth, trans_max
         self.vstar_threshold, self.top_k = vstar_threshold, top_k
         self.rng = np.random.default_rng(seed)
@@ -78,8 +82,8 @@ class SCTNTracker:
                                                        cfg.step_us)) for i in range(0, len(boxes), 64)])
                 return v[:, :, 1].max(dim=1).values.numpy()
             region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field()[0],
-                                                    cfg.input_size, cfg.steps, cfg.step_us)
-            v = self.model.forward_search(region, origins, rboxes)
+                                                    cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+            v = self.model.forward_search(region, origins, rboxes, crop=self.crop)
             return v[:, :, 1].max(dim=1).values.numpy()
 
     def track(self, events: EventBatch, t0_us: int) -> np.ndarray:

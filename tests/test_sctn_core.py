@@ -52,6 +52,23 @@ def test_reset_kernel_after_an_output_spike():
     np.testing.assert_allclose(v[first + 1:stop, 0, 0].detach(), expected[: stop - first - 1].detach(), atol=1e-6)
 
 
+def test_inference_path_equals_the_training_recurrence_and_follows_parameter_changes():
+    torch.manual_seed(0)
+    neuron = CLIF(3, alpha_m=5.0, alpha_s=2.0)
+    x = torch.rand(12, 4, 3, 5, 5) * 0.6  # (T, B, C, H, W): many spikes and resets
+    s_train, v_train = neuron(x)
+    with torch.no_grad():
+        s_fast, v_fast = neuron(x)
+    assert s_train.sum() > 20 and torch.equal(s_train, s_fast)
+    np.testing.assert_allclose(v_fast, v_train.detach(), atol=1e-5)
+    with torch.no_grad():
+        neuron.p_m.add_(0.5)  # the cached decays must follow an in-place update (fine-tuning does that)
+        s_new, v_new = neuron(x)
+    s_ref, v_ref = neuron(x)
+    assert torch.equal(s_new, s_ref) and not torch.equal(v_new, v_fast)
+    np.testing.assert_allclose(v_new, v_ref.detach(), atol=1e-5)
+
+
 def test_gradients_flow_through_the_surrogate_and_time_constants_learn():
     torch.manual_seed(0)
     net = SCTN()
@@ -141,7 +158,104 @@ def test_search_ops_of_one_aligned_candidate_equal_the_per_candidate_count():
     search = count_search_ops(net, x, torch.zeros(1, 2), torch.tensor([[0.0, 0.0, 107.0, 107.0]]))
     for layer in ("input", "conv1", "conv2", "fc1", "fc2"):
         assert search["ac_ops_by_layer"][layer] == pytest.approx(per["ac_ops_by_layer"][layer])
-    # conv3's spikes reach fc1 as (here exact, integer-aligned) crops, counted as MACs
+    # conv3's spikes reach fc1 through the crops, once per distinct crop: here the one aligned crop
     assert per["ac_ops_by_layer"]["conv3"] > 0
-    assert search["mac_ops"] == pytest.approx(per["ac_ops_by_layer"]["conv3"])
-    assert search["energy_pj"] == pytest.approx(search["ac_ops"] * 0.9 + search["mac_ops"] * 4.6)
+    assert search["ac_ops_by_layer"]["conv3"] == pytest.approx(per["ac_ops_by_layer"]["conv3"])
+    assert search["mac_ops"] == 0 and search["crops_evaluated"] == 1
+    # half a cell off, a bilinear crop mixes fc1's sums over the four crops around it: MACs on top
+    region = torch.nn.functional.pad(x, (0, 8, 0, 8))
+    shifted = count_search_ops(net, region, torch.tensor([[4.0, 4.0]]), torch.tensor([[4.0, 4.0, 107.0, 107.0]]),
+                               crop="bilinear")
+    steps_with_conv3_spikes = int((net.forward_search(region, torch.tensor([[4.0, 4.0]]), torch.tensor(
+        [[4.0, 4.0, 107.0, 107.0]]), record=True)[1]["conv3"].flatten(1).sum(1) > 0).sum())
+    assert shifted["crops_evaluated"] == 4 and shifted["mac_ops"] == 4 * 64 * steps_with_conv3_spikes > 0
+    assert shifted["energy_pj"] == pytest.approx(shifted["ac_ops"] * 0.9 + shifted["mac_ops"] * 4.6)
+
+
+def _search_reference(net: SCTN, feat: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor) -> tuple:
+    """fc1 inputs and output voltages of candidates whose canvases start at the nearest cell, computed one by one."""
+    n_cells = net.cfg.conv_sizes()[-1]
+    stride, rf = net.receptive_field()
+    inputs = []
+    for (ox, oy), (bx, by, bw, bh) in zip(origins.tolist(), boxes.tolist()):
+        cx, cy = round(ox / stride), round(oy / stride)
+        crop = feat[:, :, cy:cy + n_cells, cx:cx + n_cells].clone()
+        centre = torch.arange(n_cells) * stride + rf / 2
+        keep_x = (ox + centre >= bx) & (ox + centre < bx + bw)
+        keep_y = (oy + centre >= by) & (oy + centre < by + bh)
+        crop *= (keep_y[:, None] & keep_x[None, :]).float()
+        inputs.append(crop.flatten(1))
+    h = torch.stack(inputs, dim=1)  # (T, N, C * cells * cells): the full fc1 input, masked per box
+    with torch.no_grad():
+        for fc, neuron in zip(net.fcs, net.neurons[3:]):
+            h, v = neuron(fc(h))
+    return torch.stack(inputs, dim=1), v.transpose(0, 1)
+
+
+def _small_calibrated_net(seed: int) -> tuple[SCTN, torch.Tensor]:
+    torch.manual_seed(seed)
+    net = SCTN(NetworkConfig(channels=(4, 8, 4), fc=(16, 8)))
+    region = (torch.rand(1, 10, 2, 107 + 16, 107 + 16) < 0.08).float()
+    net.calibrate(region[:, :, :, :107, :107])
+    with torch.no_grad():  # masked crops get less input than the calibration's full canvas
+        for fc in net.fcs:
+            fc.weight.mul_(4.0)
+    return net, region
+
+
+def test_fast_search_masks_cells_outside_each_box_and_leaves_out_cells_no_box_keeps():
+    net, region = _small_calibrated_net(2)
+    # aligned canvases (integer cells), boxes of different sizes: different masks, none the full canvas
+    origins = torch.tensor([[0.0, 0.0], [8.0, 16.0], [16.0, 8.0]])
+    boxes = torch.tensor([[30.0, 35.0, 40.0, 30.0], [8 + 20.0, 16 + 25.0, 60.0, 50.0], [16 + 40.0, 8 + 40.0, 20.0, 20.0]])
+    for crop in ("nearest", "bilinear"):  # aligned: both crops are the same cells
+        with torch.no_grad():
+            v_fast, rec = net.forward_search(region, origins, boxes, record=True, crop=crop)
+        inputs, v = _search_reference(net, rec["conv3"][:, 0], origins, boxes)
+        assert float(v.abs().max()) > 0.05  # the output neurons do receive input
+        np.testing.assert_allclose(v_fast, v, atol=1e-5)
+        assert rec["crops"].shape[2] < net.cfg.channels[-1] * net.cfg.conv_sizes()[-1] ** 2  # masked for all: out
+        assert torch.equal(rec["crops"].sum(dim=2), inputs.sum(dim=2))
+
+
+def test_nearest_crops_snap_to_the_cell_and_evaluate_each_distinct_crop_once():
+    net, region = _small_calibrated_net(3)
+    gen = torch.Generator().manual_seed(0)
+    origins = torch.rand(40, 2, generator=gen) * 16  # sub-cell offsets: several candidates share a cell
+    sizes = 40 + 30 * torch.rand(40, 2, generator=gen)
+    boxes = torch.cat([origins + 53.5 - sizes / 2, sizes], dim=1)
+    with torch.no_grad():
+        v_fast, rec = net.forward_search(region, origins, boxes, record=True, crop="nearest")
+        v_bilinear = net.forward_search(region, origins, boxes, crop="bilinear")
+    _, v = _search_reference(net, rec["conv3"][:, 0], origins, boxes)
+    np.testing.assert_allclose(v_fast, v, atol=1e-5)
+    assert rec["crops"].shape[1] < 40  # fewer distinct crops than candidates were evaluated
+    assert not torch.allclose(v_bilinear, v_fast, atol=1e-3)  # bilinear crops are a different sampling
+
+
+def test_bilinear_crops_equal_grid_sampling_of_the_spike_map():
+    net, region = _small_calibrated_net(4)
+    gen = torch.Generator().manual_seed(1)
+    origins = torch.rand(30, 2, generator=gen) * 16
+    sizes = 40 + 50 * torch.rand(30, 2, generator=gen)
+    boxes = torch.cat([origins + 53.5 - sizes / 2, sizes], dim=1)
+    with torch.no_grad():
+        v_fast, rec = net.forward_search(region, origins, boxes, record=True, crop="bilinear")
+        feat = rec["conv3"][:, 0]  # (T, C, fh, fw)
+        n_cells = net.cfg.conv_sizes()[-1]
+        stride, rf = net.receptive_field()
+        fh, fw = feat.shape[2:]
+        cell = torch.arange(n_cells, dtype=torch.float32)
+        gx = (origins[:, 0:1] / stride + cell) / (fw - 1) * 2 - 1
+        gy = (origins[:, 1:2] / stride + cell) / (fh - 1) * 2 - 1
+        centre = stride * cell + rf / 2
+        keep_x = (origins[:, 0:1] + centre >= boxes[:, 0:1]) & (origins[:, 0:1] + centre < boxes[:, 0:1] + boxes[:, 2:3])
+        keep_y = (origins[:, 1:2] + centre >= boxes[:, 1:2]) & (origins[:, 1:2] + centre < boxes[:, 1:2] + boxes[:, 3:4])
+        grid = torch.stack([gx[:, None, :].expand(30, n_cells, n_cells), gy[:, :, None].expand(30, n_cells, n_cells)], -1)
+        sampled = torch.stack([torch.nn.functional.grid_sample(f[None].expand(30, -1, -1, -1), grid, align_corners=True)
+                               for f in feat])  # (T, N, C, cells, cells)
+        h = (sampled * (keep_y[:, :, None] & keep_x[:, None, :])[None, :, None]).flatten(2)
+        for fc, neuron in zip(net.fcs, net.neurons[3:]):
+            h, v = neuron(fc(h))
+    np.testing.assert_allclose(v_fast, v.transpose(0, 1), atol=1e-4)
+    assert rec["mix_macs"] > 0

@@ -1,10 +1,12 @@
-"""Time SCTN tracking (fast and paper-faithful modes) and count its synaptic operations; print JSON.
+"""Time SCTN tracking (fast mode with nearest-cell and bilinear crops, paper-faithful mode) and count
+its synaptic operations; print JSON.
 
-    python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50]
+    python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50] [--repeat 3]
 
 Without --data a synthetic 160x120 sequence (a textured square, made in numpy) is used. Timing is
 tracker time per segment (scoring the candidates), fine-tuning excluded; one torch thread per
-process as in `dvsot bench`, plus a two-thread run.
+process as in `dvsot bench`, plus a two-thread run. This machine's speed drifts by tens of percent
+between runs, so each fast-mode figure is the best of --repeat runs (the faithful mode runs once).
 """
 
 from __future__ import annotations
@@ -20,23 +22,31 @@ import numpy as np
 import torch
 
 
-def time_mode(model, path: Path, fast: bool, segments: int, threads: int) -> dict:
+def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "nearest",
+              repeat: int = 1) -> dict:
     from dvsot.boxes import iou_xywh
     from dvsot.dataset import Dataset
     from sctn.tracker import SCTNTracker
 
     torch.set_num_threads(threads)
-    tracker = SCTNTracker(model, seed=0, fast=fast, finetune_iters=0)
     with Dataset(path) as ds:
         first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
         s0 = ds.segment(first)
-        tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)
+        wh = (ds.width, ds.height)
         segs = list(ds.segments(first + 1, first + 1 + segments))
-    start, cpu = time.perf_counter(), time.process_time()
-    ious = [float(iou_xywh(tracker.track(s.events, s.t0_us), s.box)) for s in segs]
-    wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+    best = None
+    for _ in range(repeat):
+        tracker = SCTNTracker(model, seed=0, fast=fast, finetune_iters=0, crop=crop)
+        tracker.init(s0.events, s0.t0_us, s0.box, *wh)
+        start, cpu = time.perf_counter(), time.process_time()
+        ious = [float(iou_xywh(tracker.track(s.events, s.t0_us), s.box)) for s in segs]
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        if best is None or wall < best[0]:
+            best = (wall, cpu)
+    wall, cpu = best
     # cpu seconds show the cost when the machine is shared (wall time then overstates it)
-    return {"fast": fast, "threads": threads, "segments": len(segs), "segments_per_s": round(len(segs) / wall, 2),
+    return {"fast": fast, "crop": crop if fast else None, "threads": threads, "segments": len(segs),
+            "segments_per_s": round(len(segs) / wall, 2), "ms_per_segment": round(1000 * wall / len(segs), 2),
             "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
             "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
 
@@ -46,6 +56,7 @@ def main() -> None:
     parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
     parser.add_argument("--checkpoint", help="SCTN checkpoint (default: the shipped one)")
     parser.add_argument("--segments", type=int, default=50)
+    parser.add_argument("--repeat", type=int, default=3, help="fast-mode runs per setting; the best is kept")
     args = parser.parse_args()
     from sctn.checkpoint import load_checkpoint
     from sctn.encoding import encode_boxes, encode_search
@@ -60,7 +71,9 @@ def main() -> None:
             from synthetic import moving_square_file
 
             path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
-        runs = [time_mode(model, path, fast, args.segments, threads) for fast in (True, False) for threads in (1, 2)]
+        runs = [time_mode(model, path, True, args.segments, threads, crop, args.repeat)
+                for crop in ("nearest", "bilinear") for threads in (1, 2)]
+        runs += [time_mode(model, path, False, args.segments, threads) for threads in (1, 2)]
         from dvsot.dataset import Dataset
 
         with Dataset(path) as ds:
@@ -71,13 +84,14 @@ def main() -> None:
         ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
         boxes = propose(np.random.default_rng(0), seg.box.astype(np.float64), TRACK.n, "gaussian", TRACK.trans,
                         TRACK.scale, wh)
-        search = count_search_ops(model, *encode_search(seg.events, seg.t0_us, boxes, seg.box,
-                                                        model.receptive_field()[0], cfg.input_size, cfg.steps,
-                                                        cfg.step_us))
+        inputs = encode_search(seg.events, seg.t0_us, boxes, seg.box, model.receptive_field()[0], cfg.input_size,
+                               cfg.steps, cfg.step_us, cfg.tail_steps)
+        search = {crop: count_search_ops(model, *inputs, crop=crop) for crop in ("nearest", "bilinear")}
     print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"),
                       "network": {"channels": cfg.channels, "fc": cfg.fc}, "runs": runs,
                       "faithful_ac_ops_per_candidate": ops, "faithful_ac_ops_per_segment": ops * TRACK.n,
-                      "fast_search_per_segment": {k: search[k] for k in ("ac_ops", "mac_ops", "energy_pj")}},
+                      "fast_search_per_segment": {crop: {k: ops[k] for k in ("ac_ops", "mac_ops", "energy_pj")}
+                                                  for crop, ops in search.items()}},
                      indent=2))
 
 

@@ -48,8 +48,8 @@ class SCTNBenchTracker(Tracker):
         candidates, ref_box = self.tracker.last_search
         if self.tracker.fast:
             inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, model.receptive_field()[0],
-                                   cfg.input_size, cfg.steps, cfg.step_us)
-            ops = count_search_ops(model, *inputs)
+                                   cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+            ops = count_search_ops(model, *inputs, crop=self.tracker.crop)
             return {"ac_ops": ops["ac_ops"], "mac_ops": ops["mac_ops"], "energy_pj": ops["energy_pj"]}
         x = encode_boxes(segment.events, segment.t0_us, box[None], cfg.input_size, cfg.steps, cfg.step_us)
         ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
