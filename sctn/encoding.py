@@ -64,24 +64,32 @@ def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale
     return out
 
 
-def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_box_xywh: np.ndarray, stride: int,
-                  size: int = 107, steps: int = 10, step_us: int = 1000,
+def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_box_xywh: np.ndarray,
+                  receptive_field: tuple[int, int], size: int = 107, steps: int = 10, step_us: int = 1000,
                   tail_steps: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Fast-mode input: one region holding every candidate's canvas, at the reference box's canvas scale.
+    """Fast-mode input: one region for all candidates, at the reference box's canvas scale.
 
-    Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's top-left corner in
-    region pixels (N, 2) and each candidate box in region pixels (N, 4). The region's corner sits on
-    the network's total stride (sensor px / scale) so all candidates share one convolution grid.
+    receptive_field is SCTN.receptive_field(): (total stride, receptive-field size) of conv3's cells.
+    Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's
+    top-left corner in region pixels (N, 2) and each candidate box in region pixels (N, 4). The
+    region covers what the cells kept by some candidate see (a cell is kept when its receptive
+    field's centre lies in the box): the candidate boxes plus half a receptive field, not the whole
+    canvases. Its corner lies on one lattice of the total stride (the sensor lattice at scale 1,
+    moved by whole cells), so every candidate shares one convolution grid.
     """
+    stride, rf = receptive_field
     boxes = np.asarray(boxes_xywh, np.float64).reshape(-1, 4)
     scale = min(1.0, size / float(max(ref_box_xywh[2], ref_box_xywh[3])))
     centres = boxes[:, :2] + boxes[:, 2:] / 2
     half = size / 2 / scale  # sensor px from a canvas centre to its edge
-    x0 = np.floor((centres[:, 0].min() - half) / stride) * stride
-    y0 = np.floor((centres[:, 1].min() - half) / stride) * stride
-    wid = int(np.ceil((centres[:, 0].max() + half - x0) * scale)) + stride
-    hgt = int(np.ceil((centres[:, 1].max() + half - y0) * scale)) + stride
-    region = encode_region(events, t0_us, np.array([x0, y0]), scale, (hgt, wid), steps, step_us, tail_steps)
-    origins = ((centres - [x0, y0]) * scale - size / 2).astype(np.float32)
-    rboxes = np.concatenate([(boxes[:, :2] - [x0, y0]) * scale, boxes[:, 2:] * scale], axis=1).astype(np.float32)
+    corner = np.floor((centres.min(axis=0) - half) / stride) * stride  # all canvases' top-left, on the lattice
+    # whole cells of that region that no kept cell sees are dropped (region px = sensor px x scale)
+    # (one cell more on each side: a bilinear crop also reads the neighbouring cell)
+    skip = np.maximum(0.0, np.floor(((boxes[:, :2] - corner).min(axis=0) * scale - rf / 2 - stride) / stride))
+    corner = corner + skip * stride / scale
+    far = (boxes[:, :2] + boxes[:, 2:] - corner).max(axis=0) * scale + rf / 2 + stride
+    wid, hgt = (int(np.ceil(v)) + stride for v in far)
+    region = encode_region(events, t0_us, corner, scale, (hgt, wid), steps, step_us, tail_steps)
+    origins = ((centres - corner) * scale - size / 2).astype(np.float32)
+    rboxes = np.concatenate([(boxes[:, :2] - corner) * scale, boxes[:, 2:] * scale], axis=1).astype(np.float32)
     return region, torch.from_numpy(origins), torch.from_numpy(rboxes)

@@ -191,7 +191,8 @@ class SCTN(nn.Module):
         # steps in which conv3 is silent give fc1 its bias alone
         active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
         ta = len(active)
-        crops = torch.zeros(t, u, nr * nc * c)
+        products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
+        crops = torch.zeros(t, u, nr * nc * c) if record else None
         if ta and nr and nc:
             ys = pos[:, 1:2] + rows  # (U, rows) feature-map row of each kept cell
             xs = pos[:, 0:1] + cols
@@ -200,11 +201,14 @@ class SCTN(nn.Module):
             cells = feat[active].permute(0, 2, 3, 1).reshape(ta, fh * fw, c)
             cells = torch.cat([cells, cells.new_zeros(ta, 1, c)], dim=1)
             # index_select, not cells[:, index]: the advanced-indexing kernel is ~8x slower here
-            crops[active] = torch.index_select(cells, 1, index.view(-1)).view(ta, u, -1)
+            selected = torch.index_select(cells, 1, index.view(-1)).view(ta, u, -1)
+            if ta == t:
+                products = nn.functional.linear(selected, w1)
+            else:
+                products[active] = nn.functional.linear(selected, w1)
+            if record:
+                crops[active] = selected
         rec["crops"] = crops
-        products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
-        if ta:
-            products[active] = nn.functional.linear(crops[active], w1)
         if crop == "nearest":
             # the fully connected layers see U distinct inputs: run them on those, expand at the end
             current, expand = products + fc1.bias, inverse

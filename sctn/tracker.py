@@ -81,7 +81,7 @@ class SCTNTracker:
                 v = torch.cat([self.model(encode_boxes(events, t0_us, boxes[i:i + 64], cfg.input_size, cfg.steps,
                                                        cfg.step_us)) for i in range(0, len(boxes), 64)])
                 return v[:, :, 1].max(dim=1).values.numpy()
-            region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field()[0],
+            region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field(),
                                                     cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
             v = self.model.forward_search(region, origins, rboxes, crop=self.crop)
             return v[:, :, 1].max(dim=1).values.numpy()

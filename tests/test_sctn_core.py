@@ -259,3 +259,31 @@ def test_bilinear_crops_equal_grid_sampling_of_the_spike_map():
             h, v = neuron(fc(h))
     np.testing.assert_allclose(v_fast, v.transpose(0, 1), atol=1e-4)
     assert rec["mix_macs"] > 0
+
+
+def test_search_region_covers_what_the_kept_cells_see():
+    from sctn.encoding import encode_search
+    from sctn.samples import TRACK, propose
+
+    net, _ = _small_calibrated_net(5)
+    rng = np.random.default_rng(0)
+    n_ev = 4000
+    ev = EventBatch(rng.integers(0, 320, n_ev).astype(np.uint16), rng.integers(0, 240, n_ev).astype(np.uint16),
+                    np.sort(rng.integers(0, 10_000, n_ev)), rng.integers(0, 2, n_ev).astype(np.uint8))
+    for ref in (np.array([140.0, 100.0, 30.0, 40.0]), np.array([100.0, 60.0, 150.0, 120.0])):  # scale 1 and < 1
+        boxes = propose(rng, ref, 64, "gaussian", TRACK.trans, TRACK.scale, (320, 240))
+        region, origins, rboxes = encode_search(ev, 0, boxes, ref, net.receptive_field(), tail_steps=2)
+        scale = min(1.0, 107 / ref[2:].max())
+        corner = boxes[0, :2] - rboxes[0, :2].numpy() / scale
+        canvases = (np.ptp(boxes[:, 0]) * scale + 107) * (np.ptp(boxes[:, 1]) * scale + 107)
+        if ref[2] < 50:  # a small box: its region is well inside the union of the canvases
+            assert region.shape[-1] * region.shape[-2] < 0.85 * canvases
+        # the same search on a region 3 cells larger on every side (the whole canvases and more)
+        pad = 3 * 8
+        big = encode_region(ev, 0, corner - pad / scale, scale, (region.shape[-2] + 2 * pad, region.shape[-1] + 2 * pad),
+                            tail_steps=2)
+        for crop in ("nearest", "bilinear"):
+            with torch.no_grad():
+                v = net.forward_search(region, origins, rboxes, crop=crop)
+                v_big = net.forward_search(big, origins + pad, rboxes + torch.tensor([pad, pad, 0, 0]), crop=crop)
+            np.testing.assert_allclose(v, v_big, atol=1e-5)

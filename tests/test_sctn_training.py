@@ -61,8 +61,8 @@ def test_training_lowers_the_loss_and_separates_positives_from_negatives(trained
     assert final["vmax_pos"] > final["vmax_neg"] + 0.3 and final["accuracy"] > 0.8
 
 
-def run_tracker(model, path, fast):
-    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64)
+def run_tracker(model, path, fast, crop="nearest"):
+    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, crop=crop)
     with Dataset(path) as ds:
         s0 = ds.segment(0)
         tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)
@@ -71,13 +71,31 @@ def run_tracker(model, path, fast):
     return np.array(boxes), iou_xywh(np.array(boxes), gt)
 
 
-@pytest.mark.parametrize("fast", [False, True])
-def test_tracker_follows_a_moving_square_deterministically(trained, fast):
+@pytest.mark.parametrize("fast, crop", [(False, "nearest"), (True, "nearest"), (True, "bilinear")])
+def test_tracker_follows_a_moving_square_deterministically(trained, fast, crop):
     model, _, _, test_file = trained
-    boxes, iou = run_tracker(model, test_file, fast)
+    boxes, iou = run_tracker(model, test_file, fast, crop)
     assert iou.mean() > 0.5 and iou.min() > 0.2
-    again, _ = run_tracker(model, test_file, fast)
+    again, _ = run_tracker(model, test_file, fast, crop)
     np.testing.assert_array_equal(boxes, again)
+
+
+def test_energy_table_counts_each_mode_from_the_spikes(trained):
+    from benchmarks.energy_table import energy_table, format_energy_table
+
+    model, _, _, test_file = trained
+    table = energy_table(model, [test_file], n_candidates=64, n_segments=4)
+    rows = table["per_segment"]
+    faithful, nearest, bilinear = (rows[k] for k in ("SCTN per candidate (paper)", "SCTN fast search (nearest cell)",
+                                                     "SCTN fast search (bilinear)"))
+    assert faithful["ac_ops"] == pytest.approx(table["per_candidate_ops"]["SCTN"] * 64)
+    # fast search: convolutions once and each distinct crop once, so far fewer operations than 64 evaluations
+    assert 0 < nearest["ac_ops"] < faithful["ac_ops"] / 4 and nearest["mac_ops"] == 0
+    assert bilinear["mac_ops"] > 0 and bilinear["energy_pj"] > nearest["energy_pj"]
+    assert rows["same-structure ANN"]["mac_ops"] == pytest.approx(table["per_candidate_ops"]["same-structure ANN"] * 64)
+    rates = table["firing"]["firing_rate_by_layer"]
+    assert all(0 <= r <= 1 for r in rates.values()) and rates["input"] > 0
+    assert "fast search (nearest cell)" in format_energy_table(table)
 
 
 def test_checkpoint_round_trip_and_train_cli_errors(trained, tmp_path, capsys):

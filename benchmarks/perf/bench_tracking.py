@@ -84,7 +84,7 @@ def main() -> None:
         ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
         boxes = propose(np.random.default_rng(0), seg.box.astype(np.float64), TRACK.n, "gaussian", TRACK.trans,
                         TRACK.scale, wh)
-        inputs = encode_search(seg.events, seg.t0_us, boxes, seg.box, model.receptive_field()[0], cfg.input_size,
+        inputs = encode_search(seg.events, seg.t0_us, boxes, seg.box, model.receptive_field(), cfg.input_size,
                                cfg.steps, cfg.step_us, cfg.tail_steps)
         search = {crop: count_search_ops(model, *inputs, crop=crop) for crop in ("nearest", "bilinear")}
     print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"),
