@@ -55,7 +55,7 @@ def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
 
 
 def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
-                     crop: str = "nearest") -> dict:
+                     crop: str = "bilinear") -> dict:
     """Operations of one fast-mode search (SCTN.forward_search) over N candidates: a whole segment's cost.
 
     What actually runs is counted: the convolutions once over the region (each spike times its

@@ -122,7 +122,7 @@ class SCTN(nn.Module):
         return stride, rf
 
     def forward_search(self, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
-                       record: bool = False, crop: str = "nearest"
+                       record: bool = False, crop: str = "bilinear"
                        ) -> torch.Tensor | tuple[torch.Tensor, dict]:
         """Fast mode: convolutions once over a search region, then per candidate a crop into the FC layers.
 
@@ -216,7 +216,8 @@ class SCTN(nn.Module):
         else:
             slot = torch.zeros(n * k, dtype=torch.long)
             slot[used] = inverse
-            mixed = (products[:, slot.view(n, k)] * weights[None, :, :, None]).sum(dim=2)  # (T, N, width)
+            corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
+            mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
             current, expand = mixed + fc1.bias, None
             rec["mix_macs"] = float(len(used) * fc1.out_features * ta)
         h, v = self.neurons[3](current)

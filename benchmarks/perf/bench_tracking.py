@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 
-def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "nearest",
+def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "bilinear",
               repeat: int = 1) -> dict:
     from dvsot.boxes import iou_xywh
     from dvsot.dataset import Dataset
@@ -72,7 +72,7 @@ def main() -> None:
 
             path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
         runs = [time_mode(model, path, True, args.segments, threads, crop, args.repeat)
-                for crop in ("nearest", "bilinear") for threads in (1, 2)]
+                for crop in ("bilinear", "nearest") for threads in (1, 2)]
         runs += [time_mode(model, path, False, args.segments, threads) for threads in (1, 2)]
         from dvsot.dataset import Dataset
 
