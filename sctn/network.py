@@ -219,7 +219,8 @@ class SCTN(nn.Module):
             corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
             mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
             current, expand = mixed + fc1.bias, None
-            rec["mix_macs"] = float(len(used) * fc1.out_features * ta)
+            mixing = (weights > 0).sum(dim=1)  # a candidate on a cell (one corner) needs no mixing
+            rec["mix_macs"] = float(mixing[mixing > 1].sum()) * fc1.out_features * ta
         h, v = self.neurons[3](current)
         rec["fc1"] = h
         h, v = self.neurons[4](self.fcs[1](h))
