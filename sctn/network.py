@@ -149,7 +149,7 @@ class SCTN(nn.Module):
         h = x[0]
         rec: dict = {"input": h[:, None]}
         for name, conv, neuron in zip(("conv1", "conv2", "conv3"), self.convs, self.neurons[:3]):
-            h, _ = neuron(_conv_active_steps(conv, h)[:, None])
+            h, _ = neuron(conv(h)[:, None])
             h = h[:, 0]
             rec[name] = h[:, None]
         feat = h  # (T, C, fh, fw)
@@ -172,14 +172,21 @@ class SCTN(nn.Module):
             corners = base[:, None] + torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
             weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], dim=1)
         k = corners.shape[1]
-        # one integer crop per (candidate, corner) of nonzero weight; equal position and mask = equal crop
-        keys = torch.cat([corners.reshape(n * k, 2), in_x.repeat_interleave(k, 0), in_y.repeat_interleave(k, 0)], 1)
+        # one integer crop per (candidate, corner) of nonzero weight; equal position and mask = equal crop.
+        # A mask is an interval of cells per axis, so (position, first kept cell, kept count) per axis
+        # identifies a crop: packed into one int64 (13 + 13 + 4 x 7 bits), unique is a 1-D sort.
+        if n_cells >= 128:
+            raise ValueError(f"fast search packs cell indices in 7 bits; conv3 has {n_cells} cells a side")
+        pos = corners.reshape(n * k, 2).long()
+        (sx, nx), (sy, ny) = (_interval(m) for m in (in_x, in_y))
+        masks = ((sx * 128 + nx) * 128 + sy) * 128 + ny  # 28 bits
+        keys = ((pos[:, 0] + 4096) * 8192 + pos[:, 1] + 4096) * (1 << 28) + masks.repeat_interleave(k)
         used = torch.nonzero(weights.reshape(-1) > 0)[:, 0]
-        _, inverse = torch.unique(keys[used], dim=0, return_inverse=True)
+        _, inverse = torch.unique(keys[used], return_inverse=True)
         u = int(inverse.max()) + 1
         rep = used[torch.empty(u, dtype=torch.long).scatter_(0, inverse, torch.arange(len(used)))]
-        pos = keys[rep, :2].long()
-        ux, uy = in_x.repeat_interleave(k, 0)[rep], in_y.repeat_interleave(k, 0)[rep]
+        pos = pos[rep]
+        ux, uy = in_x[rep // k], in_y[rep // k]
         # cells masked for every candidate are zero in every crop: leave them, and their fc1 weights,
         # out (a box half the canvas wide keeps ~1/4 of the cells)
         cols = torch.nonzero(in_x.any(dim=0))[:, 0]
@@ -239,14 +246,7 @@ class SCTN(nn.Module):
         return self._run(x, record=True)
 
 
-def _conv_active_steps(conv: nn.Conv2d, h: torch.Tensor) -> torch.Tensor:
-    """conv over (T, C, H, W), computed only for steps with any input (a silent step gives the bias alone)."""
-    active = torch.nonzero(h.flatten(1).amax(dim=1) != 0)[:, 0]
-    if len(active) == h.shape[0]:
-        return conv(h)
-    ho = (h.shape[2] - conv.kernel_size[0]) // conv.stride[0] + 1
-    wo = (h.shape[3] - conv.kernel_size[1]) // conv.stride[1] + 1
-    out = conv.bias.view(1, -1, 1, 1).expand(h.shape[0], -1, ho, wo).clone()
-    if len(active):
-        out[active] = conv(h[active])
-    return out
+def _interval(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(first True index, number of Trues) per row of a boolean (N, cells) mask whose Trues are contiguous."""
+    count = mask.sum(dim=1)
+    return torch.where(count > 0, mask.to(torch.uint8).argmax(dim=1), 0), count

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 import torch
 from torch import nn
@@ -95,23 +96,21 @@ class CLIF(nn.Module):
         d_m, d_s = torch.exp(-1.0 / a_m), torch.exp(-1.0 / a_s)
         return d_m.view(shape), d_s.view(shape), kernel_norm(d_m, d_s, a_m, a_s).view(shape)
 
-    def _inference_constants(self, shape: tuple[int, ...]) -> tuple[torch.Tensor, np.ndarray]:
-        """V0 and the stacked decays (d_m, d_s) for _infer, cached until the parameters change (tracking
-        calls every layer once per segment with the same weights; fine-tuning updates them in place)."""
-        key = (shape, self.p_m.data_ptr(), self.p_m._version, self.p_s.data_ptr(), self.p_s._version)
+    def _inference_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(d_m, d_s, V0) per channel as float32 arrays for _infer, cached until the parameters change
+        (tracking calls every layer once per segment with the same weights; fine-tuning updates them in place)."""
+        key = (self.p_m.data_ptr(), self.p_m._version, self.p_s.data_ptr(), self.p_s._version)
         if getattr(self, "_cache_key", None) != key:
-            d_m, d_s, v0 = self._constants(shape)
-            self._cache = (v0, torch.stack([d_m.expand_as(d_s), d_s])[:, None].numpy())
+            self._cache = tuple(np.ascontiguousarray(a.detach().numpy(), np.float32) for a in self._constants((-1,)))
             self._cache_key = key
         return self._cache
 
     def forward(self, current: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Spikes and voltages (both (T, B, C, ...)) for input currents (T, B, C, ...)."""
-        shape = (-1,) + (1,) * (current.dim() - 3)
         if not (torch.is_grad_enabled() and (current.requires_grad or self.p_m.requires_grad)):
             with torch.no_grad():
-                return self._infer(current, *self._inference_constants(shape))
-        d_m, d_s, v0 = self._constants(shape)
+                return self._infer(current, *self._inference_constants())
+        d_m, d_s, v0 = self._constants((-1,) + (1,) * (current.dim() - 3))
         m = torch.zeros_like(current[0])
         s = torch.zeros_like(current[0])
         r = torch.zeros_like(current[0])
@@ -127,24 +126,43 @@ class CLIF(nn.Module):
             volts.append(v)
         return torch.stack(spikes), torch.stack(volts)
 
-    def _infer(self, current: torch.Tensor, v0: torch.Tensor, decay: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        """The same recurrence without autograd, fused for speed (tracking's hot path).
-
-        m and the reset r decay alike, so u = V0 m - theta r obeys u[n] = d_m (u[n-1] + V0 I[n] -
-        theta S[n-1]) and V = u - V0 s: with V0 folded into the input once, the state is one stacked
-        (2, ...) array with four in-place updates per step. The loop runs in numpy on the tensors'
-        memory: tracking's layers are small, and numpy's per-call cost is a fraction of torch's.
-        """
-        cur = (current * v0).numpy()
+    def _infer(self, current: torch.Tensor, d_m: np.ndarray, d_s: np.ndarray,
+               v0: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        """The same recurrence without autograd, compiled (tracking's hot path): see _clif_steps."""
+        t, b, c = current.shape[:3]
+        cur = current.detach().contiguous().reshape(t, b, -1).numpy()
+        per = cur.shape[2] // c  # neurons per channel (pixels of a feature map, 1 in a linear layer)
         volts = np.empty(cur.shape, np.float32)
-        fired = np.empty(cur.shape, bool)
-        us = np.zeros((2,) + cur.shape[1:], np.float32)  # us[0] = u, us[1] = V0 s
-        u, s = us
-        for n in range(cur.shape[0]):
-            us += cur[n]
-            if n:
-                np.subtract(u, self.theta, out=u, where=fired[n - 1])
-            us *= decay
-            np.subtract(u, s, out=volts[n])
-            np.greater_equal(volts[n], self.theta, out=fired[n])
-        return torch.from_numpy(fired.astype(np.float32)), torch.from_numpy(volts)
+        fired = np.empty(cur.shape, np.bool_)
+        _clif_steps(cur, np.repeat(d_m, per), np.repeat(d_s, per), np.repeat(v0, per), np.float32(self.theta),
+                    volts, fired)
+        return (torch.from_numpy(fired.astype(np.float32)).view(current.shape),
+                torch.from_numpy(volts).view(current.shape))
+
+
+@numba.njit(cache=True)
+def _clif_steps(cur: np.ndarray, d_m: np.ndarray, d_s: np.ndarray, v0: np.ndarray, theta: np.float32,
+                volts: np.ndarray, fired: np.ndarray) -> None:  # pragma: no cover - compiled
+    """C-LIF over currents (T, B, M) into volts and fired; d_m, d_s, V0 per neuron (M,).
+
+    m and the reset r decay alike, so u = V0 m - theta r obeys u[n] = d_m (u[n-1] + V0 I[n] -
+    theta S[n-1]); with w = V0 s, V = u - w. Two numbers of state per neuron; steps outermost and
+    neurons innermost, so memory is read in order and the inner loop vectorises.
+    """
+    steps, batch, neurons = cur.shape
+    u = np.zeros((batch, neurons), np.float32)
+    w = np.zeros((batch, neurons), np.float32)
+    reset = np.zeros((batch, neurons), np.float32)  # theta S[n-1]
+    for n in range(steps):
+        for i in range(batch):
+            for j in range(neurons):
+                x = cur[n, i, j] * v0[j]
+                un = (u[i, j] + x - reset[i, j]) * d_m[j]
+                wn = (w[i, j] + x) * d_s[j]
+                u[i, j] = un
+                w[i, j] = wn
+                v = un - wn
+                volts[n, i, j] = v
+                spike = v >= theta
+                fired[n, i, j] = spike
+                reset[i, j] = theta * spike
