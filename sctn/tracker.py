@@ -8,8 +8,11 @@ translation range to its initial value; otherwise it grows by `trans_growth` up 
 `fast=True` runs the convolutions once over a search region that holds every candidate and crops
 per candidate before the fully connected layers (SCTN.forward_search); `fast=False` evaluates each
 candidate separately, as in the paper. `crop` picks the fast mode's sampling of the conv3 map per
-candidate: bilinear at the candidate's sub-cell offset (default; within 0.01 ARscore of the
-per-candidate mode) or the nearest cell (faster, fewer operations, ~0.015 ARscore lower). Fine-tuning happens on the first initialisation of a
+candidate: bilinear at the candidate's sub-cell offset (default) or the nearest cell (faster, fewer
+operations, lower ARscore). In fast mode the fine-tuning adds `finetune_search_iters` mini-batches
+run through the fast mode itself, so the network adapts to its inputs (cells masked instead of
+input pixels): on the five test scenes that lifts the fast mode from 0.887 to 0.905 ARscore, the
+per-candidate mode scoring 0.902. Fine-tuning happens on the first initialisation of a
 sequence only; a later re-initialisation (after a failure) resets the box and the range. A fixed
 seed gives the same candidates, hence the same track.
 """
@@ -35,7 +38,7 @@ class SCTNTracker:
     def __init__(self, model: SCTN | str | os.PathLike | None = None, seed: int = 0, fast: bool = True,
                  finetune_iters: int = 10, n_candidates: int = TRACK.n, trans: float = TRACK.trans,
                  trans_growth: float = 1.5, trans_max: float = 1.5, vstar_threshold: float = 0.2,
-                 top_k: int = 3, crop: str = "bilinear") -> None:
+                 top_k: int = 3, crop: str = "bilinear", finetune_search_iters: int = 10) -> None:
         if model is None or isinstance(model, (str, os.PathLike)):
             from sctn.checkpoint import load_checkpoint
 
@@ -45,6 +48,7 @@ class SCTNTracker:
         if crop not in ("bilinear", "nearest"):
             raise ValueError(f"crop must be 'bilinear' or 'nearest', got {crop!r}")
         self.seed, self.fast, self.finetune_iters, self.crop = seed, fast, finetune_iters, crop
+        self.finetune_search_iters = finetune_search_iters if fast else 0
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = n_candidates, trans, trans_growth, trans_max
         self.vstar_threshold, self.top_k = vstar_threshold, top_k
         self.rng = np.random.default_rng(seed)
@@ -66,7 +70,8 @@ class SCTNTracker:
             if self.finetune_iters > 0:
                 torch.manual_seed(self.seed)
                 self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
-                                           iters=self.finetune_iters)
+                                           iters=self.finetune_iters, search_iters=self.finetune_search_iters,
+                                           crop=self.crop)
             self.tuned = True
 
     def candidates(self) -> np.ndarray:

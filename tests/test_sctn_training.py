@@ -62,7 +62,8 @@ def test_training_lowers_the_loss_and_separates_positives_from_negatives(trained
 
 
 def run_tracker(model, path, fast, crop="nearest"):
-    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, crop=crop)
+    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, crop=crop,
+                          finetune_search_iters=2)
     with Dataset(path) as ds:
         s0 = ds.segment(0)
         tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)
