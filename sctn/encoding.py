@@ -42,7 +42,7 @@ def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: i
     v = np.floor((ey[ei] - cy[bi]) * scale[bi] + size / 2).astype(np.int64)
     ok = (u >= 0) & (u < size) & (v >= 0) & (v < size)
     flat = (((bi[ok] * steps + es[ei][ok]) * 2 + ep[ei][ok]) * size + v[ok]) * size + u[ok]
-    out.view(-1)[torch.from_numpy(np.unique(flat))] = 1.0
+    out.view(-1).index_fill_(0, torch.from_numpy(flat), 1.0)  # repeats set the same 1
     return out
 
 

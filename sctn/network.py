@@ -139,8 +139,7 @@ class SCTN(nn.Module):
         over the region (T, 1, C, H, W), "crops" (T, U, inputs) the U distinct crops fed to fc1,
         "fc1", "fc2" spikes (T, N or U, width) and "mix_macs", the multiply-adds of the bilinear mix.
         """
-        if crop not in ("bilinear", "nearest"):
-            raise ValueError(f"crop must be 'bilinear' or 'nearest', got {crop!r}")
+        check_crop(crop)
         cfg = self.cfg
         x = region
         if x.shape[1] == cfg.steps and cfg.tail_steps:
@@ -198,8 +197,9 @@ class SCTN(nn.Module):
         # steps in which conv3 is silent give fc1 its bias alone
         active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
         ta = len(active)
-        products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
         crops = torch.zeros(t, u, nr * nc * c) if record else None
+        if not (ta == t and nr and nc):
+            products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
         if ta and nr and nc:
             ys = pos[:, 1:2] + rows  # (U, rows) feature-map row of each kept cell
             xs = pos[:, 0:1] + cols
@@ -244,6 +244,15 @@ class SCTN(nn.Module):
     def forward_record(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Voltages and every layer's spikes (input first, each (T, B, ...)), for energy accounting."""
         return self._run(x, record=True)
+
+
+CROPS = ("bilinear", "nearest")
+
+
+def check_crop(crop: str) -> None:
+    """Raise ValueError unless crop names a fast-mode crop (CROPS)."""
+    if crop not in CROPS:
+        raise ValueError(f"crop must be one of {', '.join(CROPS)}, got {crop!r}")
 
 
 def _interval(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

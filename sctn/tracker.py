@@ -27,7 +27,7 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_search
-from sctn.network import SCTN
+from sctn.network import SCTN, check_crop
 from sctn.samples import TRACK, SampleSpec, propose
 from sctn.train import finetune
 
@@ -45,8 +45,7 @@ class SCTNTracker:
             model, _ = load_checkpoint(model)
         self.base = model
         self.model: SCTN = model
-        if crop not in ("bilinear", "nearest"):
-            raise ValueError(f"crop must be 'bilinear' or 'nearest', got {crop!r}")
+        check_crop(crop)
         self.seed, self.fast, self.finetune_iters, self.crop = seed, fast, finetune_iters, crop
         self.finetune_search_iters = finetune_search_iters if fast else 0
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = n_candidates, trans, trans_growth, trans_max
