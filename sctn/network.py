@@ -12,11 +12,13 @@ Default widths (chosen for speed on a CPU): conv 2->8 (4x4, stride 4) -> 16 (3x3
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from pydantic import BaseModel, ConfigDict
 from torch import nn
 
 from sctn.neurons import CLIF
+from sctn.spike_sums import window_sums
 
 
 class NetworkConfig(BaseModel):
@@ -185,6 +187,15 @@ class SCTN(nn.Module):
         u = int(inverse.max()) + 1
         rep = used[torch.empty(u, dtype=torch.long).scatter_(0, inverse, torch.arange(len(used)))]
         pos = pos[rep]
+        # steps in which conv3 is silent give fc1 its bias alone
+        active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
+        ta = len(active)
+        if not (record or torch.is_grad_enabled()):  # inference: event-driven sums, no dense crops
+            owner = rep // k
+            windows = torch.stack([pos[:, 0], pos[:, 1], sx[owner], nx[owner], sy[owner], ny[owner]], dim=1)
+            products = torch.from_numpy(window_sums(feat.permute(0, 2, 3, 1).numpy(), self._fc1_cell_weights(),
+                                                    windows.numpy()))
+            return self._search_tail(products, crop, inverse, used, weights, ta, rec, record)
         ux, uy = in_x[rep // k], in_y[rep // k]
         # cells masked for every candidate are zero in every crop: leave them, and their fc1 weights,
         # out (a box half the canvas wide keeps ~1/4 of the cells)
@@ -194,9 +205,6 @@ class SCTN(nn.Module):
         fc1 = self.fcs[0]
         w1 = fc1.weight.view(-1, c, n_cells, n_cells)[:, :, rows][:, :, :, cols]
         w1 = w1.permute(0, 2, 3, 1).reshape(fc1.out_features, -1)  # the crops' (row, col, channel) order
-        # steps in which conv3 is silent give fc1 its bias alone
-        active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
-        ta = len(active)
         crops = torch.zeros(t, u, nr * nc * c) if record else None
         if not (ta == t and nr and nc):
             products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
@@ -216,6 +224,15 @@ class SCTN(nn.Module):
             if record:
                 crops[active] = selected
         rec["crops"] = crops
+        return self._search_tail(products, crop, inverse, used, weights, ta, rec, record)
+
+    def _search_tail(self, products: torch.Tensor, crop: str, inverse: torch.Tensor, used: torch.Tensor,
+                     weights: torch.Tensor, ta: int, rec: dict, record: bool):
+        """forward_search after fc1's weighted sums (T, U, width) of the distinct crops (`inverse` maps the
+        used (candidate, corner) pairs to them): bilinear mix, bias, the FC neurons; ta = steps conv3 spiked."""
+        fc1 = self.fcs[0]
+        t = products.shape[0]
+        n, k = weights.shape
         if crop == "nearest":
             # the fully connected layers see U distinct inputs: run them on those, expand at the end
             current, expand = products + fc1.bias, inverse
@@ -236,6 +253,18 @@ class SCTN(nn.Module):
         if expand is not None:
             v = v[:, expand]
         return (v.transpose(0, 1), rec) if record else v.transpose(0, 1)
+
+    def _fc1_cell_weights(self) -> np.ndarray:
+        """fc1's weights as (row, col, channel, output) float32 for spike_sums.window_sums, cached until they change
+        (fine-tuning updates them in place)."""
+        w = self.fcs[0].weight
+        key = (w.data_ptr(), w._version)
+        if getattr(self, "_fc1_key", None) != key:
+            n = self.cfg.conv_sizes()[-1]
+            self._fc1_cells = np.ascontiguousarray(
+                w.detach().view(-1, self.cfg.channels[-1], n, n).permute(2, 3, 1, 0).numpy(), np.float32)
+            self._fc1_key = key
+        return self._fc1_cells
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Output voltages (B, T + tail, 2) for input spikes x (B, T, 2, H, W); index 1 is the target neuron."""

@@ -287,3 +287,35 @@ def test_search_region_covers_what_the_kept_cells_see():
                 v = net.forward_search(region, origins, rboxes, crop=crop)
                 v_big = net.forward_search(big, origins + pad, rboxes + torch.tensor([pad, pad, 0, 0]), crop=crop)
             np.testing.assert_allclose(v, v_big, atol=1e-5)
+
+
+def test_event_driven_fc1_sums_equal_the_dense_product():
+    net, region = _small_calibrated_net(6)
+    gen = torch.Generator().manual_seed(2)
+    origins = torch.rand(50, 2, generator=gen) * 16 - 4  # some canvases start left of / above the region
+    sizes = 30 + 60 * torch.rand(50, 2, generator=gen)
+    boxes = torch.cat([origins + 53.5 - sizes / 2, sizes], dim=1)
+    for crop in ("nearest", "bilinear"):
+        with torch.no_grad():
+            v_sparse = net.forward_search(region, origins, boxes, crop=crop)  # inference: spike_sums
+            v_dense, _ = net.forward_search(region, origins, boxes, crop=crop, record=True)  # gathered crops x W
+        assert float(v_dense.abs().max()) > 0.05
+        np.testing.assert_allclose(v_sparse, v_dense, atol=1e-5)
+
+
+def test_window_sums_add_the_weights_of_the_spikes_inside_each_kept_window():
+    from sctn.spike_sums import window_sums
+
+    spikes = np.zeros((2, 4, 5, 3), np.uint8)  # (T, H, W, C)
+    spikes[0, 1, 2, 0] = spikes[0, 1, 2, 2] = 1  # two channels of one cell
+    spikes[0, 3, 4, 1] = 1
+    spikes[1, 0, 0, 1] = 1
+    weights = np.arange(3 * 3 * 3 * 2, dtype=np.float32).reshape(3, 3, 3, 2)  # (row, col, channel, out)
+    crops = np.array([[1, 0, 0, 3, 0, 3],   # map cells x 1..3, y 0..2: holds (y1, x2) at crop (r1, q1)
+                      [2, 1, 1, 2, 0, 3],   # columns 1..2 kept (x 3..4): (y1, x2) masked, (y3, x4) at (r2, q2)
+                      [-1, -1, 0, 3, 0, 3]])  # reaches outside the map: (y0, x0) at (r1, q1)
+    out = window_sums(spikes, weights, crops)
+    np.testing.assert_array_equal(out[0, 0], weights[1, 1, 0] + weights[1, 1, 2])
+    np.testing.assert_array_equal(out[0, 1], weights[2, 2, 1])
+    np.testing.assert_array_equal(out[1, 2], weights[1, 1, 1])
+    assert not out[1, :2].any() and not out[0, 2].any()
