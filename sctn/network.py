@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict
 from torch import nn
 
 from sctn.neurons import CLIF
-from sctn.spike_sums import window_sums
+from sctn.spike_sums import mix_corners, window_sums
 
 
 class NetworkConfig(BaseModel):
@@ -240,8 +240,11 @@ class SCTN(nn.Module):
         else:
             slot = torch.zeros(n * k, dtype=torch.long)
             slot[used] = inverse
-            corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
-            mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
+            if products.requires_grad:
+                corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
+                mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
+            else:  # fused: no (T, N, corners, width) intermediate
+                mixed = torch.from_numpy(mix_corners(products.numpy(), slot.view(n, k).numpy(), weights.numpy()))
             current, expand = mixed + fc1.bias, None
             mixing = (weights > 0).sum(dim=1)  # a candidate on a cell (one corner) needs no mixing
             rec["mix_macs"] = float(mixing[mixing > 1].sum()) * fc1.out_features * ta

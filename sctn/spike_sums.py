@@ -77,3 +77,26 @@ def window_sums(spikes: np.ndarray, weights: np.ndarray, crops: np.ndarray) -> n
         _window_sums(start, channels, np.array(spikes.shape[:3], np.int64), np.ascontiguousarray(weights, np.float32),
                      np.ascontiguousarray(crops, np.int64), out)
     return out
+
+
+@numba.njit(cache=True)
+def _mix(sums: np.ndarray, slots: np.ndarray, weights: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """out[s, n] = sum over k of weights[n, k] * sums[s, slots[n, k]], skipping zero weights."""
+    for s in range(sums.shape[0]):
+        for n in range(slots.shape[0]):
+            acc = out[s, n]
+            for k in range(slots.shape[1]):
+                wk = weights[n, k]
+                if wk != 0.0:
+                    src = sums[s, slots[n, k]]
+                    for o in range(acc.shape[0]):
+                        acc[o] += wk * src[o]
+
+
+def mix_corners(sums: np.ndarray, slots: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Bilinear mix (T, N, width) float32 of the sums (T, U, width) of each candidate's corner crops
+    (slots (N, K) indices into U, weights (N, K), zero for a corner not read)."""
+    out = np.zeros((sums.shape[0], slots.shape[0], sums.shape[2]), np.float32)
+    _mix(np.ascontiguousarray(sums, np.float32), np.ascontiguousarray(slots, np.int64),
+         np.ascontiguousarray(weights, np.float32), out)
+    return out

@@ -319,3 +319,14 @@ def test_window_sums_add_the_weights_of_the_spikes_inside_each_kept_window():
     np.testing.assert_array_equal(out[0, 1], weights[2, 2, 1])
     np.testing.assert_array_equal(out[1, 2], weights[1, 1, 1])
     assert not out[1, :2].any() and not out[0, 2].any()
+
+
+def test_mix_corners_weights_each_candidates_corner_sums():
+    from sctn.spike_sums import mix_corners
+
+    sums = np.arange(2 * 3 * 2, dtype=np.float32).reshape(2, 3, 2)  # (T, U, width)
+    slots = np.array([[0, 2, 0, 0], [1, 1, 2, 0]])
+    weights = np.array([[0.25, 0.75, 0.0, 0.0], [0.5, 0.25, 0.25, 0.0]], np.float32)
+    out = mix_corners(sums, slots, weights)
+    expect = np.einsum("nk,tnkw->tnw", weights, sums[:, slots])
+    np.testing.assert_allclose(out, expect, rtol=1e-6)
