@@ -35,33 +35,32 @@ def _spike_lists(spikes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma
     return start, channels
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=True)
 def _window_sums(start: np.ndarray, channels: np.ndarray, shape: np.ndarray, weights: np.ndarray,
                  crops: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
     """out[s, u] = sum of weights[r, q, ch] over spikes (s, y0 + r, x0 + q, ch) inside crop u's kept window.
 
     crops (U, 6) int64: x0, y0 (the crop's first cell in the map), first kept column, kept columns,
-    first kept row, kept rows; cells outside the map read as silent.
+    first kept row, kept rows; cells outside the map read as silent. A local accumulator (not a view
+    of out) lets the width loop vectorise.
     """
     t, h, w = shape[0], shape[1], shape[2]
     width = weights.shape[3]
+    acc = np.zeros(width, np.float32)
     for u in range(crops.shape[0]):
         x0, y0, sx, nx, sy, ny = crops[u, 0], crops[u, 1], crops[u, 2], crops[u, 3], crops[u, 4], crops[u, 5]
+        r0, r1 = max(sy, -y0), min(sy + ny, h - y0)  # the kept rows and columns that lie on the map
+        q0, q1 = max(sx, -x0), min(sx + nx, w - x0)
         for s in range(t):
-            acc = out[s, u]
-            for r in range(sy, sy + ny):
-                y = y0 + r
-                if y < 0 or y >= h:
-                    continue
-                for q in range(sx, sx + nx):
-                    x = x0 + q
-                    if x < 0 or x >= w:
-                        continue
-                    cell = (s * h + y) * w + x
-                    for k in range(start[cell], start[cell + 1]):
-                        col = weights[r, q, channels[k]]
+            acc[:] = 0.0
+            for r in range(r0, r1):
+                row = (s * h + y0 + r) * w + x0
+                for q in range(q0, q1):
+                    for k in range(start[row + q], start[row + q + 1]):
+                        ch = channels[k]
                         for o in range(width):
-                            acc[o] += col[o]
+                            acc[o] += weights[r, q, ch, o]
+            out[s, u, :] = acc
 
 
 def window_sums(spikes: np.ndarray, weights: np.ndarray, crops: np.ndarray) -> np.ndarray:
