@@ -203,6 +203,16 @@ class Render(Strict):
     shading: Literal["path", "direct"] = Field(
         "path", description="path: Cycles path tracing; direct: Lambert lighting from the suns and the world "
                             "evaluated in each surface's shader (no shadows, no specular, no bounces); ~2x faster")
+    surface: Literal["lean", "principled"] = Field(
+        "lean", description="lean: Lambert diffuse + GGX glossy mixed by Fresnel (IOR 1.5), the classic dielectric; "
+                            "principled: Blender's Principled BSDF (layered, energy-compensated; slower)")
+    bake_background: Literal["auto", True, False] = Field(
+        "auto", description="bake the background plane's procedural texture into an image once, before the first "
+                            "render; true: any procedural kind; auto: only the smooth, costly ones (noise, voronoi, "
+                            "wave, magic and their presets), not brick/checker/gradient; false: never")
+    bake_texels_per_px: float = Field(2.0, gt=0, le=8, description="bake texels per on-screen pixel (closest approach)")
+    bake_max_size: int = Field(4096, ge=64, le=16384, description="largest side of the bake image, texels")
+    bake_samples: int = Field(1, ge=1, le=64, description="Cycles samples per texel of the bake")
 
 
 class Sampling(Strict):

@@ -38,6 +38,10 @@ def write(tmp_path, text, name="s.yaml"):
     (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
     (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
     (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
+    (GOOD + "render: {surface: phong}\n", "field 'render.surface'"),
+    (GOOD + "render: {bake_background: sometimes}\n", "field 'render.bake_background'"),
+    (GOOD + "render: {bake_texels_per_px: 0}\n", "field 'render.bake_texels_per_px'"),
+    (GOOD + "render: {bake_max_size: 32}\n", "field 'render.bake_max_size'"),
     (GOOD.replace("shape: cube", "shape: dodecahedron"), "field 'target.shape'"),
     (GOOD.replace("shape: cube", "mesh: missing.obj"), "file not found"),
     (GOOD + "sampling: {min_rate_hz: 500, max_rate_hz: 100}\n", "max_rate_hz must be >= min_rate_hz"),
@@ -52,6 +56,14 @@ def test_bad_scene_files(tmp_path, text, words):
         load_scene(p)
     msg = str(info.value)
     assert msg.startswith(str(p)) and words in msg and "\n" not in msg
+
+
+def test_render_defaults_are_the_lean_surface_and_auto_bake(tmp_path):
+    r = load_scene(write(tmp_path, GOOD)).render
+    assert (r.surface, r.bake_background, r.bake_texels_per_px, r.bake_max_size, r.bake_samples) == (
+        "lean", "auto", 2.0, 4096, 1)
+    r = load_scene(write(tmp_path, GOOD + "render: {surface: principled, bake_background: false}\n")).render
+    assert r.surface == "principled" and r.bake_background is False
 
 
 def test_missing_file_and_overrides(tmp_path):

@@ -40,9 +40,13 @@ def scene(tmp_path, name="s", duration=0.04, x0=0.0, x1=0.0, shake=0.0, texture=
     return p
 
 
-def test_static_scene_gives_no_signal_events(tmp_path):
+@pytest.mark.parametrize("render", ["{threads: 2}", "{threads: 2, surface: principled, bake_background: false}"])
+def test_static_scene_gives_no_signal_events(tmp_path, render):
+    # the default (lean surface, baked noise background) and the Principled BSDF with procedural textures
+    path = scene(tmp_path)
+    path.write_text(path.read_text().replace("render: {threads: 2}", f"render: {render}"))
     out = tmp_path / "static.h5"
-    assert main(["generate", str(scene(tmp_path)), "-o", str(out), "--quiet"]) == 0
+    assert main(["generate", str(path), "-o", str(out), "--quiet"]) == 0
     with Dataset(out) as ds:
         assert ds.num_events == 0
         track = ds.boxes()
@@ -112,3 +116,72 @@ def test_direct_shading_refuses_point_and_area_lights():
     with pytest.raises(UserError, match=r"lights\[0\]\.type"):
         parse_scene(text.replace("render: {threads: 2}", "render: {threads: 2, shading: direct}"))
     parse_scene(text)  # path shading takes any light
+
+
+def _wall_scene(render: str, roughness: float = 0.0, sun_deg: float = 60.0, world: float = 0.0) -> str:
+    """The tiny scene as a bare wall (albedo (0.5, 0.4, 0.2), no emission, the target far outside the view)."""
+    text = SCENE.format(duration=0.02, x0=100.0, x1=100.0, shake=0.0, texture="null")
+    text = text.replace("[0.1, 0.1, 0.1], texture: null, emission: 0.3",
+                        f"[0.5, 0.4, 0.2], texture: null, roughness: {roughness}")
+    text = text.replace("lights: []", f"lights: [{{type: sun, strength: 2.0, rotation_deg: [{sun_deg}, 0, 0]}}]")
+    text = text.replace("world: {color: [0.5, 0.5, 0.5], strength: 1.0}", f"world: {{color: [{world}, {world}, {world}]}}")
+    return text.replace("render: {threads: 2}", f"render: {{threads: 2, {render}}}")
+
+
+def _render_once(text: str, t: float = 0.0) -> np.ndarray:
+    from dvsot.blender import BlenderScene
+
+    with BlenderScene(parse_scene(text)) as sc:
+        return sc.render(t)[0]
+
+
+@pytest.mark.parametrize("sun_deg", [30.0, 60.0])
+def test_lean_surface_gives_the_closed_form_fresnel_weighted_lambert_radiance(sun_deg):
+    # A smooth (roughness 0) wall under a sun and a black world: the glossy lobe is a mirror that sees
+    # neither the sun nor the camera, so each pixel is the diffuse lobe's share (1 - F) of the Lambert
+    # radiance rho E cos(theta) / pi; F is the Fresnel reflectance of IOR 1.5 at the camera ray's angle,
+    # 0.040 at normal incidence and < 0.0405 within this 64x48 view. Per pixel, the sun's 0.53 deg disc
+    # (one sample of it) moves cos(theta) by up to 0.0046 cot(theta): 0.8 % at 30 deg.
+    luma = _render_once(_wall_scene("surface: lean", sun_deg=sun_deg))
+    lambert = float(np.array([0.5, 0.4, 0.2]) @ [0.2126, 0.7152, 0.0722]) * 2.0 * np.sin(np.radians(sun_deg)) / np.pi
+    np.testing.assert_allclose(luma.mean(), (1 - 0.04) * lambert, rtol=2e-3)
+    np.testing.assert_allclose(luma, (1 - 0.04) * lambert, rtol=0.012)
+
+
+def test_lean_surface_matches_the_principled_bsdf_on_a_rough_glossy_wall():
+    # Same wall, roughness 0.5 and an ambient world: both shaders add a broad Fresnel-weighted GGX sheen
+    # to the Lambert term; they differ in the Principled BSDF's energy compensation and multiscatter GGX
+    # (city_star: mean luma -0.9 %). One sample per pixel: compare means over the image.
+    text = _wall_scene("surface: lean", roughness=0.5, world=0.1)
+    lean = _render_once(text)
+    principled = _render_once(text.replace("surface: lean", "surface: principled"))
+    assert abs(lean.mean() / principled.mean() - 1) < 0.015  # measured -0.4 %
+
+
+def test_baked_background_renders_like_the_procedural_texture(tmp_path):
+    from dvsot.blender import BlenderScene
+
+    text = scene(tmp_path, texture="{type: galaxy, scale: 5}").read_text()
+    images = {}
+    for bake in ("true", "false"):
+        cfg = parse_scene(text.replace("render: {threads: 2}", f"render: {{threads: 2, bake_background: {bake}}}"))
+        with BlenderScene(cfg) as sc:
+            images[bake] = sc.render(0.0)[0]
+            nodes = {n.type for n in sc.background_plane.material_slots[0].material.node_tree.nodes}
+            assert ("TEX_IMAGE" in nodes) == (bake == "true")
+            if bake == "true":
+                # 2 texels per on-screen pixel: fx = 35/36 * 64 px, the wall 18 m away and 40 m wide
+                assert sc.bake_side == int(np.ceil(2 * 35 / 36 * 64 / 18 * 40))
+    baked, procedural = images["true"], images["false"]
+    assert abs(baked.mean() / procedural.mean() - 1) < 0.01
+    assert np.abs(baked - procedural).mean() < 0.02 * procedural.mean()
+
+
+def test_bake_auto_leaves_sharp_edged_textures_procedural():
+    from dvsot.blender.scene import _should_bake
+    from dvsot.config import Texture
+
+    assert _should_bake(Texture(type="flower"), "auto") and _should_bake(Texture(type="noise"), "auto")
+    assert not _should_bake(Texture(type="window"), "auto") and not _should_bake(Texture(type="checker"), "auto")
+    assert _should_bake(Texture(type="window"), True) and not _should_bake(Texture(type="noise"), False)
+    assert not _should_bake(None, True)
