@@ -170,8 +170,16 @@ def test_baked_background_renders_like_the_procedural_texture(tmp_path):
             nodes = {n.type for n in sc.background_plane.material_slots[0].material.node_tree.nodes}
             assert ("TEX_IMAGE" in nodes) == (bake == "true")
             if bake == "true":
-                # 2 texels per on-screen pixel: fx = 35/36 * 64 px, the wall 18 m away and 40 m wide
-                assert sc.bake_side == int(np.ceil(2 * 35 / 36 * 64 / 18 * 40))
+                # the camera (fx = 35/36 * 64 px) looks straight at the 40 m wall 18 m away: it sees
+                # 64 x 48 px / fx * 18 m of it, centred; that part + 10 % a side + 4 px is baked at 2
+                # texels per pixel, the whole wall at 1/8 of that
+                (u0, v0, u1, v1), px_per_m = sc._plane_view()
+                assert px_per_m == pytest.approx(35 / 36 * 64 / 18)
+                half = np.array([32, 24]) / px_per_m / 40 * 1.2 + 4 / (px_per_m * 40)
+                np.testing.assert_allclose([u0, v0, u1, v1], [*(0.5 - half), *(0.5 + half)], atol=1e-6)
+                near, whole = sc.bake_sizes
+                assert near == tuple(int(n) for n in np.ceil(2 * px_per_m * 40 * 2 * half))
+                assert whole == (int(np.ceil(2 * px_per_m * 40 / 8)),) * 2
     baked, procedural = images["true"], images["false"]
     assert abs(baked.mean() / procedural.mean() - 1) < 0.01
     assert np.abs(baked - procedural).mean() < 0.02 * procedural.mean()

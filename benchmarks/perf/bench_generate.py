@@ -2,11 +2,14 @@
 simulated second and total wall time as JSON (and a one-line table row with --table).
 
     python -m benchmarks.perf.bench_generate [--scene blender_scenes/quickstart.yaml] [--duration S]
-        [--resolution WxH] [--set render.specular=false ...] [--table]
+        [--resolution WxH] [--set render.surface=principled ...] [--repeat N] [--table]
 
 s_per_frame is the wall time of BlenderScene.render per sample: one Cycles render (luma + visible mask),
 the EXR read-back and the amodal mask; s_per_frame_after_first leaves out the first render, which also
-builds Cycles' BVH and shaders once (first_frame_s). The event simulator and file writing are in wall_s only.
+builds Cycles' BVH and shaders once (first_frame_s). The event simulator and file writing are in wall_s only;
+other_s = wall_s - frames x s_per_frame is the scene build (with the background bake, render.bake_background)
+plus events and writing. --repeat N runs it N times and adds the min and median of s_per_frame_after_first
+(the machine's speed drifts, so one run is not a figure).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ def main() -> None:
     p.add_argument("--resolution", default=None, help="WxH override")
     p.add_argument("--set", dest="settings", type=_setting, action="append", default=[], metavar="KEY=VALUE",
                    help="scene override, e.g. render.amodal_mask=render (repeatable)")
+    p.add_argument("--repeat", type=int, default=1, help="runs; reports min and median s per sample over them")
     p.add_argument("--table", action="store_true", help="also print a markdown table row")
     a = p.parse_args()
     overrides = dict(a.settings)
@@ -48,10 +52,19 @@ def main() -> None:
         w, h = (int(v) for v in a.resolution.split("x"))
         overrides.update({"sensor.width": w, "sensor.height": h})
     cfg = load_scene(a.scene, overrides)
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        summary = generate(cfg, Path(tmp) / "bench.h5", progress=False)
-    summary["total_wall_s_including_import"] = round(time.perf_counter() - start, 2)
+    runs = []
+    for _ in range(max(a.repeat, 1)):
+        start = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            summary = generate(cfg, Path(tmp) / "bench.h5", progress=False)
+        summary["total_wall_s_including_import"] = round(time.perf_counter() - start, 2)
+        summary["other_s"] = round(summary["wall_s"] - summary["frames"] * summary["s_per_frame"], 2)
+        runs.append(summary)
+    if len(runs) > 1:
+        after = sorted(r["s_per_frame_after_first"] or r["s_per_frame"] for r in runs)
+        summary["runs"] = len(runs)
+        summary["s_per_frame_after_first_min"] = after[0]
+        summary["s_per_frame_after_first_median"] = after[len(after) // 2]
     summary["settings"] = {k: v for k, v in overrides.items() if k != "duration_s"}
     summary.pop("output", None)
     print(json.dumps(summary, indent=2))

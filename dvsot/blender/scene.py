@@ -460,44 +460,51 @@ class BlenderScene:
         m, _ = pose_and_scale(plane.trajectory, 0.0)
         self.background_plane.matrix_world = m.T.tolist()
 
-    def _bake_size(self) -> int:
-        """Side of the square bake image (texels): render.bake_texels_per_px times the plane's largest
-        on-screen density (pixels per metre at its closest approach to the camera) times its size, capped."""
-        cfg, r = self.cfg, self.cfg.render
+    def _plane_view(self) -> tuple[np.ndarray, float]:
+        """((u0, v0, u1, v1), px_per_m): the part of the background plane the camera sees over the whole
+        sequence, in the plane's 0..1 coordinates with a margin (the whole plane when some view ray
+        misses it), and its largest on-screen density (pixels per metre at the closest approach)."""
+        cfg, k = self.cfg, self._intrinsics
         m, _ = pose_and_scale(self._plane_spec.trajectory, 0.0)
-        normal, centre = m[:3, 2], m[:3, 3]
+        axes, normal, centre = m[:3, :2], m[:3, 2], m[:3, 3]
+        size_m = cfg.background.size_m
+        # image corners as camera-space directions (x right, y up, looking along -z): the frustum meets
+        # the plane in a quadrilateral whose corners are these rays' hits
+        corners = np.array([[(u - k.cx) / k.fx, -(v - k.cy) / k.fx, -1.0]
+                            for u in (0.0, float(k.width)) for v in (0.0, float(k.height))])
         seed = cfg.derived_seed("camera_shake")
-        distance = min(abs(float(normal @ (pose_and_scale(cfg.camera, t, seed)[0][:3, 3] - centre)))
-                       for t in np.linspace(0.0, cfg.duration_s, 33))
-        px_per_m = self._intrinsics.fx / max(distance, 1e-3)
-        return int(np.clip(np.ceil(r.bake_texels_per_px * px_per_m * cfg.background.size_m), 64, r.bake_max_size))
+        hits, distance = [], np.inf
+        for t in np.linspace(0.0, cfg.duration_s, 65):
+            cam = pose_and_scale(cfg.camera, float(t), seed)[0]
+            rays, origin = corners @ cam[:3, :3].T, cam[:3, 3]
+            distance = min(distance, abs(float(normal @ (origin - centre))))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = float(normal @ (centre - origin)) / (rays @ normal)
+            hits.append(((origin + s[:, None] * rays) - centre) @ axes / size_m + 0.5 if np.all(s > 0) else None)
+        px_per_m = k.fx / max(distance, 1e-3)
+        if any(h is None for h in hits):
+            return np.array([0.0, 0.0, 1.0, 1.0]), px_per_m
+        uv = np.concatenate(hits)
+        lo, hi = uv.min(0), uv.max(0)
+        pad = 0.1 * (hi - lo) + 4.0 / (px_per_m * size_m)  # camera shake between the sampled times
+        lo, hi = np.clip(lo - pad, 0.0, 1.0), np.clip(hi + pad, 0.0, 1.0)
+        if np.any(hi - lo <= 0):
+            return np.array([0.0, 0.0, 1.0, 1.0]), px_per_m
+        return np.concatenate([lo, hi]), px_per_m
 
-    def _bake_background(self) -> None:
-        """Bake the background plane's procedural colour into an image once (Cycles' emission bake) and
-        let its material read that image instead.
-
-        The plane is static, so its texture never changes: evaluating noise/Voronoi/wave nodes at every
-        camera ray and light sample is wasted work (woman_ball's emissive Voronoi: ~0.5 s a sample)."""
-        plane, size_m = self.background_plane, self.cfg.background.size_m
-        mat = plane.material_slots[0].material
-        nt = mat.node_tree
-        colour = _albedo_and_emission(nt)[0]
+    def _bake(self, nt, colour, uv_name: str, width: int, height: int):
+        """Bake the colour socket of the plane's node tree into a float image through UV map uv_name;
+        returns the image texture node reading it back (linear interpolation)."""
+        plane, sc = self.background_plane, self.scene
         out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
         surface = out.inputs["Surface"].links[0].from_socket
-        me = plane.data
-        uv = me.uv_layers.new(name="bake")
-        for loop in me.loops:  # the plane's own coordinates, so one texel is one fixed patch of wall
-            co = me.vertices[loop.vertex_index].co
-            uv.data[loop.index].uv = (co.x / size_m + 0.5, co.y / size_m + 0.5)
-        side = self._bake_size()
-        image = bpy.data.images.new("background_bake", side, side, float_buffer=True)
-        emission = nt.nodes.new("ShaderNodeEmission")
+        emission = nt.nodes.new("ShaderNodeEmission")  # an emission bake gives the colour itself, unlit
         nt.links.new(colour, emission.inputs["Color"])
         nt.links.new(emission.outputs["Emission"], out.inputs["Surface"])
         node = nt.nodes.new("ShaderNodeTexImage")
-        node.image = image
+        node.image = bpy.data.images.new(f"background_{uv_name}", width, height, float_buffer=True)
         nt.nodes.active = node
-        sc = self.scene
+        plane.data.uv_layers.active = plane.data.uv_layers[uv_name]
         samples, sc.cycles.samples = sc.cycles.samples, self.cfg.render.bake_samples
         bpy.context.view_layer.objects.active = plane
         plane.select_set(True)
@@ -509,19 +516,53 @@ class BlenderScene:
             plane.select_set(False)
         if "FINISHED" not in result:
             raise RuntimeError("Blender could not bake the background texture")
-        image.pack()  # keep the baked pixels with the scene data that Cycles reads
+        node.image.pack()  # keep the baked pixels with the scene data that Cycles reads
         nt.nodes.remove(emission)
         nt.links.new(surface, out.inputs["Surface"])
         node.interpolation = "Linear"
-        node.extension = "EXTEND"
         coords = nt.nodes.new("ShaderNodeUVMap")
-        coords.uv_map = "bake"
+        coords.uv_map = uv_name
         nt.links.new(coords.outputs["UV"], node.inputs["Vector"])
+        return node
+
+    def _bake_background(self) -> None:
+        """Bake the background plane's procedural colour into images once (Cycles' emission bake) and let
+        its material read them instead: the part the camera sees at render.bake_texels_per_px texels per
+        on-screen pixel, the whole plane (seen only by bounce and light rays) at 1/8 of that.
+
+        The plane is static, so its texture never changes: evaluating noise/Voronoi/wave nodes at every
+        camera ray and light sample is wasted work (woman_ball's emissive Voronoi: ~0.3 s a sample)."""
+        r, size_m = self.cfg.render, self.cfg.background.size_m
+        nt = self.background_plane.material_slots[0].material.node_tree
+        colour = _albedo_and_emission(nt)[0]
+        (u0, v0, u1, v1), px_per_m = self._plane_view()
+        me = self.background_plane.data
+        view, whole = me.uv_layers.new(name="bake_view"), me.uv_layers.new(name="bake_whole")
+        for loop in me.loops:  # the plane's own coordinates, so one texel is one fixed patch of wall
+            co = me.vertices[loop.vertex_index].co
+            u, v = co.x / size_m + 0.5, co.y / size_m + 0.5
+            whole.data[loop.index].uv = (u, v)
+            view.data[loop.index].uv = ((u - u0) / (u1 - u0), (v - v0) / (v1 - v0))
+        texels_per_m = r.bake_texels_per_px * px_per_m
+
+        def side(extent: float, per_m: float) -> int:
+            return int(np.clip(np.ceil(per_m * extent * size_m), 16, r.bake_max_size))
+
+        near = self._bake(nt, colour, "bake_view", side(u1 - u0, texels_per_m), side(v1 - v0, texels_per_m))
+        near.extension = "CLIP"  # alpha 0 outside the seen part: the mix below falls back to the whole plane
+        far = self._bake(nt, colour, "bake_whole", side(1.0, texels_per_m / 8), side(1.0, texels_per_m / 8))
+        far.extension = "EXTEND"
+        mix = nt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        nt.links.new(near.outputs["Alpha"], mix.inputs["Factor"])
+        nt.links.new(far.outputs["Color"], mix.inputs["A"])
+        nt.links.new(near.outputs["Color"], mix.inputs["B"])
         for link in list(colour.links):
             to_socket = link.to_socket
             nt.links.remove(link)
-            nt.links.new(node.outputs["Color"], to_socket)
-        self.bake_side = side
+            nt.links.new(mix.outputs["Result"], to_socket)
+        me.uv_layers.active = view
+        self.bake_sizes = (tuple(near.image.size), tuple(far.image.size))
 
     def set_time(self, t: float) -> None:
         """Pose camera and objects at time t (seconds)."""
