@@ -2,6 +2,7 @@
 its synaptic operations; print JSON.
 
     python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50] [--repeat 3]
+        [--fast-only]
 
 Without --data a synthetic 160x120 sequence (a textured square, made in numpy) is used. Timing is
 tracker time per segment (scoring the candidates), fine-tuning excluded; one torch thread per
@@ -57,6 +58,7 @@ def main() -> None:
     parser.add_argument("--checkpoint", help="SCTN checkpoint (default: the shipped one)")
     parser.add_argument("--segments", type=int, default=50)
     parser.add_argument("--repeat", type=int, default=3, help="fast-mode runs per setting; the best is kept")
+    parser.add_argument("--fast-only", action="store_true", help="skip the paper-faithful mode (~1 segment/s)")
     args = parser.parse_args()
     from sctn.checkpoint import load_checkpoint
     from sctn.encoding import encode_boxes, encode_search
@@ -73,7 +75,8 @@ def main() -> None:
             path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
         runs = [time_mode(model, path, True, args.segments, threads, crop, args.repeat)
                 for crop in ("bilinear", "nearest") for threads in (1, 2)]
-        runs += [time_mode(model, path, False, args.segments, threads) for threads in (1, 2)]
+        if not args.fast_only:
+            runs += [time_mode(model, path, False, args.segments, threads) for threads in (1, 2)]
         from dvsot.dataset import Dataset
 
         with Dataset(path) as ds:
