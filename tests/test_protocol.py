@@ -58,3 +58,32 @@ def test_a_crashing_tracker_is_recorded_not_raised(tmp_path):
     with Dataset(tmp_path / "s.h5") as ds:
         res = run_sequence(Scripted(ds.segment_boxes(), [], crash_at=3), ds, "scripted")
     assert res.error.startswith("RuntimeError: boom") and np.all(np.isnan(res.iou))
+
+
+def test_initialisation_and_energy_counting_are_timed_apart_from_updates(tmp_path, monkeypatch):
+    import benchmarks.protocol as protocol
+
+    clock = [0.0]
+    monkeypatch.setattr(protocol.time, "perf_counter", lambda: clock[0])
+
+    class Timed(Scripted):
+        """Each init takes 5 s, each update 0.25 s and each energy count 1 s of the fake clock."""
+
+        def init(self, segment, box_xywh, width, height):
+            super().init(segment, box_xywh, width, height)
+            clock[0] += 5.0
+
+        def update(self, segment):
+            clock[0] += 0.25
+            return super().update(segment)
+
+        def energy_per_segment(self):
+            clock[0] += 1.0
+            return None
+
+    gt = np.tile(np.array([10, 10, 20, 20], np.float32), (6, 1))
+    make_file(tmp_path / "s.h5", gt)
+    with Dataset(tmp_path / "s.h5") as ds:
+        res = run_sequence(Timed(ds.segment_boxes(), miss=[2]), ds, "timed")
+    # 0 init, 1 ok, 2 fail, 3 re-init, 4 ok, 5 ok: 2 inits, 4 updates
+    assert res.init_seconds == 10.0 and res.tracker_seconds == 1.0 and res.segments_per_s == 4.0
