@@ -13,6 +13,10 @@ under /dev/shm (the render result cannot be read from memory in background mode)
 
 Cycles runs on the CPU with a fixed seed (no animated seed) and no denoising, so a static pixel gets
 exactly the same value in every frame and produces no false events.
+
+Surfaces are the lean dielectric (Lambert + GGX mixed by Fresnel, render.surface = "lean") or the
+Principled BSDF; with render.bake_background the background plane's procedural colour is baked into
+images once at build time (BlenderScene._bake_background) so that renders only look it up.
 """
 
 from __future__ import annotations
@@ -195,8 +199,9 @@ def _lean_surface(nt, m: Material, colour) -> None:
     """The classic dielectric: Lambert diffuse and GGX glossy (same roughness) mixed by the Fresnel
     reflectance of IOR 1.5, plus an Emission shader when m.emission > 0.
 
-    It has the Principled BSDF's two lobes without its layering and energy compensation, which Cycles
-    evaluates for every shading point and light sample (city_star: ~30% less time per sample)."""
+    It has the Principled BSDF's two lobes without its layering, energy compensation and multiscatter
+    GGX, which Cycles evaluates at every shading point and light sample (city_star: ~9% less CPU time
+    a sample, mean luma -0.9%)."""
     out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
     diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (*m.color, 1.0)
