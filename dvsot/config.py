@@ -206,10 +206,8 @@ class Render(Strict):
     surface: Literal["lean", "principled"] = Field(
         "lean", description="lean: Lambert diffuse + GGX glossy mixed by Fresnel (IOR 1.5), the classic dielectric; "
                             "principled: Blender's Principled BSDF (layered, energy-compensated; slower)")
-    # off by default: it changes the rendered data slightly (0.2 % mean absolute), enough to move the tiny
-    # CI benchmark's SCTN beyond its committed reference (benchmarks/reference/ci_metrics.json)
     bake_background: Literal["auto", True, False] = Field(
-        False, description="bake the background plane's procedural texture into an image once, before the first "
+        "auto", description="bake the background plane's procedural texture into an image once, before the first "
                            "render; true: any procedural kind; auto: only the smooth, costly ones (noise, voronoi, "
                            "wave, magic and their presets), not brick/checker/gradient; false: never")
     bake_texels_per_px: float = Field(2.0, gt=0, le=8, description="bake texels per on-screen pixel (closest approach)")

@@ -58,12 +58,12 @@ def test_bad_scene_files(tmp_path, text, words):
     assert msg.startswith(str(p)) and words in msg and "\n" not in msg
 
 
-def test_render_defaults_are_the_lean_surface_without_bake(tmp_path):
+def test_render_defaults_are_the_lean_surface_with_the_automatic_bake(tmp_path):
     r = load_scene(write(tmp_path, GOOD)).render
     assert (r.surface, r.bake_background, r.bake_texels_per_px, r.bake_max_size, r.bake_samples) == (
-        "lean", False, 2.0, 4096, 1)
-    r = load_scene(write(tmp_path, GOOD + "render: {surface: principled, bake_background: auto}\n")).render
-    assert r.surface == "principled" and r.bake_background == "auto"
+        "lean", "auto", 2.0, 4096, 1)
+    r = load_scene(write(tmp_path, GOOD + "render: {surface: principled, bake_background: false}\n")).render
+    assert r.surface == "principled" and r.bake_background is False
     assert load_scene(write(tmp_path, GOOD + "render: {bake_background: true}\n")).render.bake_background is True
 
 
