@@ -20,6 +20,19 @@ k* = floor or ceil of t* = a_m a_s / (a_m - a_s) ln(a_m / a_s), the continuous p
 a_m and a_s are learnable per channel: a_s = 1 + softplus(p_s), a_m = a_s + 0.05 + softplus(p_m),
 so a_m > a_s always and V0 stays finite. The spike's gradient is STCA's rectangular surrogate:
 dS/dV = 1/width where |V - theta| < width/2, else 0.
+
+Training runs the recurrence compiled (CLIFFunction), with its adjoint in reverse time; with
+a_X = dLoss/dX, g_X the gradient arriving from the layer's outputs and H' the surrogate:
+
+    a_S[n] = g_S[n] + d_m a_r[n+1]              (S[n] enters r[n+1])
+    a_V[n] = g_V[n] + H'(V[n]) a_S[n]
+    a_m[n] = V0 a_V[n] + d_m a_m[n+1],  a_s[n] = -V0 a_V[n] + d_s a_s[n+1],  a_r[n] = -theta a_V[n] + d_m a_r[n+1]
+    dLoss/dI[n] = d_m a_m[n] + d_s a_s[n]
+    dLoss/dd_m += a_m[n] (m[n-1] + I[n]) + a_r[n] (r[n-1] + S[n-1]),  dLoss/dd_s += a_s[n] (s[n-1] + I[n]),
+    dLoss/dV0 += a_V[n] (m[n] - s[n])
+
+The backward pass recomputes the states instead of storing them; autograd carries d_m, d_s, V0 on
+to the time constants. A test holds it equal to the loop of torch ops (CLIF._forward_reference).
 """
 
 from __future__ import annotations
@@ -72,6 +85,53 @@ def psp_kernel(t_ms: torch.Tensor, alpha_m: float, alpha_s: float) -> torch.Tens
     return torch.where(t >= 0, v0 * (torch.exp(-t / alpha_m) - torch.exp(-t / alpha_s)), torch.zeros_like(t))
 
 
+class CLIFFunction(torch.autograd.Function):
+    """C-LIF over currents (T, B, C, ...) with per-channel (C,) d_m, d_s, V0: compiled forward and adjoint backward.
+
+    Same arithmetic, in the same order, as CLIF._forward_reference, so spikes, voltages and the
+    current's gradient are bit-identical to that loop under autograd; the gradients of d_m, d_s and
+    V0 are its sums in another order (float64 accumulators).
+    """
+
+    @staticmethod
+    def forward(ctx, current: torch.Tensor, d_m: torch.Tensor, d_s: torch.Tensor, v0: torch.Tensor,  # type: ignore[override]
+                theta: float, width: float) -> tuple[torch.Tensor, torch.Tensor]:
+        t, b, c = current.shape[:3]
+        cur = current.detach().contiguous().reshape(t, b, -1).numpy()
+        per = cur.shape[2] // c  # neurons per channel (pixels of a feature map, 1 in a linear layer)
+        dtype = cur.dtype.type
+        consts = tuple(np.ascontiguousarray(np.repeat(a.detach().numpy().astype(dtype, copy=False), per))
+                       for a in (d_m, d_s, v0))
+        spikes, volts = np.empty(cur.shape, dtype), np.empty(cur.shape, dtype)
+        _clif_train_forward(cur, *consts, dtype(theta), spikes, volts)
+        ctx.save_for_backward(current)
+        ctx.consts = consts
+        ctx.theta, ctx.width, ctx.shape, ctx.param_dtype = theta, width, current.shape, d_m.dtype
+        ctx.set_materialize_grads(False)  # hidden layers' voltages and the last layer's spikes get no gradient
+        return torch.from_numpy(spikes).view(current.shape), torch.from_numpy(volts).view(current.shape)
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad_spikes: torch.Tensor | None, grad_volts: torch.Tensor | None):  # type: ignore[override]
+        (current,) = ctx.saved_tensors
+        consts = ctx.consts
+        cur = current.detach().contiguous().reshape(current.shape[0], current.shape[1], -1).numpy()
+        shape = cur.shape
+        dtype = cur.dtype.type
+        none = np.zeros((1, 1, 1), dtype)
+
+        def as_array(g: torch.Tensor | None) -> np.ndarray:
+            return none if g is None else np.ascontiguousarray(g.detach().reshape(shape).numpy(), dtype)
+
+        g_cur = np.empty(shape, dtype)
+        g_consts = np.zeros((3, shape[2]), np.float64)  # per neuron: d_m, d_s, V0
+        _clif_train_backward(cur, as_array(grad_spikes), grad_spikes is not None, as_array(grad_volts),
+                             grad_volts is not None, *consts, dtype(ctx.theta),
+                             dtype(ctx.width / 2), dtype(1) / dtype(ctx.width), g_cur, g_consts)
+        g_channel = torch.from_numpy(g_consts.reshape(3, ctx.shape[2], -1).sum(axis=2)).to(ctx.param_dtype)
+        return torch.from_numpy(g_cur).view(ctx.shape), g_channel[0], g_channel[1], g_channel[2], None, None
+
+
 class CLIF(nn.Module):
     """A layer of C-LIF neurons with learnable per-channel time constants (ms); input (T, B, C, ...) currents."""
 
@@ -110,6 +170,11 @@ class CLIF(nn.Module):
         if not (torch.is_grad_enabled() and (current.requires_grad or self.p_m.requires_grad)):
             with torch.no_grad():
                 return self._infer(current, *self._inference_constants())
+        d_m, d_s, v0 = self._constants((-1,))
+        return CLIFFunction.apply(current, d_m, d_s, v0, self.theta, self.surrogate_width)
+
+    def _forward_reference(self, current: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The recurrence as a loop of torch ops under autograd (reference for CLIFFunction's gradients)."""
         d_m, d_s, v0 = self._constants((-1,) + (1,) * (current.dim() - 3))
         m = torch.zeros_like(current[0])
         s = torch.zeros_like(current[0])
@@ -166,3 +231,120 @@ def _clif_steps(cur: np.ndarray, d_m: np.ndarray, d_s: np.ndarray, v0: np.ndarra
                 spike = v >= theta
                 fired[n, i, j] = spike
                 reset[i, j] = theta * spike
+
+
+BLOCK = 2048  # neurons per tile of the backward pass: its recomputed states (3 x T x BLOCK) stay in the L2 cache
+
+
+@numba.njit(cache=True)
+def _clif_block(cur: np.ndarray, i: int, j0: int, j1: int, d_m: np.ndarray, d_s: np.ndarray, v0: np.ndarray,
+                theta: np.floating, states: np.ndarray, last: np.ndarray, pre: np.ndarray) -> None:  # pragma: no cover
+    """C-LIF of sample i, neurons j0..j1-1, over all steps of currents (T, B, M): per step n, m[n-1] + I[n],
+    s[n-1] + I[n], r[n-1] + S[n-1], V[n] and S[n] into pre[0..4, n, :j1 - j0]; states (3, >= j1 - j0) and
+    last (>= j1 - j0) are scratch.
+
+    The three states and each rounding as in CLIF._forward_reference (not the fused u = V0 m - theta r of
+    _clif_steps), so outputs and surrogate windows equal the reference loop's bit for bit; the forward
+    and backward kernels both run this, so the backward sees exactly the forward's states. One-dimensional
+    views and no branches in the inner loop, so it vectorises.
+    """
+    width = j1 - j0
+    m, s, r = states[0, :width], states[1, :width], states[2, :width]
+    m[:] = 0
+    s[:] = 0
+    r[:] = 0
+    dm, ds, v0j = d_m[j0:j1], d_s[j0:j1], v0[j0:j1]
+    for n in range(cur.shape[0]):
+        x = cur[n, i, j0:j1]
+        m_pre, s_pre, r_pre, volts, spikes = pre[0, n, :width], pre[1, n, :width], pre[2, n, :width], \
+            pre[3, n, :width], pre[4, n, :width]
+        last_n = pre[4, n - 1, :width] if n > 0 else last[:width]
+        for k in range(width):
+            mp = m[k] + x[k]
+            sp = s[k] + x[k]
+            rp = r[k] + last_n[k]
+            mn = dm[k] * mp
+            sn = ds[k] * sp
+            rn = dm[k] * rp
+            v = v0j[k] * (mn - sn) - theta * rn
+            m[k] = mn
+            s[k] = sn
+            r[k] = rn
+            m_pre[k] = mp
+            s_pre[k] = sp
+            r_pre[k] = rp
+            volts[k] = v
+            spikes[k] = v >= theta
+
+
+@numba.njit(cache=True)
+def _clif_train_forward(cur: np.ndarray, d_m: np.ndarray, d_s: np.ndarray, v0: np.ndarray, theta: np.floating,
+                        spikes: np.ndarray, volts: np.ndarray) -> None:  # pragma: no cover - compiled
+    """C-LIF over currents (T, B, M) into spikes and volts; d_m, d_s, V0 per neuron (M,). Nothing else is kept:
+    the backward pass recomputes the states tile by tile (writing them out would cost more memory traffic)."""
+    steps, batch, neurons = cur.shape
+    tile = min(neurons, BLOCK)
+    pre = np.empty((5, steps, tile), cur.dtype)
+    states = np.empty((3, tile), cur.dtype)
+    last = np.zeros(tile, cur.dtype)
+    for i in range(batch):
+        for j0 in range(0, neurons, BLOCK):
+            j1 = min(j0 + BLOCK, neurons)
+            _clif_block(cur, i, j0, j1, d_m, d_s, v0, theta, states, last, pre)
+            for n in range(steps):
+                volts[n, i, j0:j1] = pre[3, n, :j1 - j0]
+                spikes[n, i, j0:j1] = pre[4, n, :j1 - j0]
+
+
+@numba.njit(cache=True)
+def _clif_train_backward(cur: np.ndarray, g_spikes: np.ndarray, has_g_spikes: bool, g_volts: np.ndarray,
+                         has_g_volts: bool, d_m: np.ndarray, d_s: np.ndarray, v0: np.ndarray, theta: np.floating,
+                         half: np.floating, inv_width: np.floating, g_cur: np.ndarray,
+                         g_consts: np.ndarray) -> None:  # pragma: no cover - compiled
+    """The adjoint recurrence of the forward pass in reverse time (see the module docstring), per tile of
+    neurons after recomputing its states: the current's gradient into g_cur (T, B, M), the constants'
+    per neuron added to g_consts (3, M: d_m, d_s, V0).
+
+    Each product and two-term sum is the one autograd forms on the reference loop, in the same
+    operand order up to commutation (exact in IEEE; a missing output gradient is a 0 added, also
+    exact), so g_cur is bit-identical to it.
+    """
+    steps, batch, neurons = cur.shape
+    zero = theta - theta  # the surrogate's 0 outside the window, in the arrays' type (a literal 0 would widen)
+    tile = min(neurons, BLOCK)
+    pre = np.empty((5, steps, tile), cur.dtype)
+    states = np.empty((3, tile), cur.dtype)
+    last = np.zeros(tile, cur.dtype)
+    adjoint = np.empty((3, tile), cur.dtype)  # d_m am[n+1], d_s as[n+1], d_m ar[n+1]: what step n gets from n+1
+    nothing = np.zeros(tile, cur.dtype)
+    for i in range(batch):
+        for j0 in range(0, neurons, BLOCK):
+            j1 = min(j0 + BLOCK, neurons)
+            width = j1 - j0
+            _clif_block(cur, i, j0, j1, d_m, d_s, v0, theta, states, last, pre)
+            cm, cs, cr = adjoint[0, :width], adjoint[1, :width], adjoint[2, :width]
+            cm[:] = 0
+            cs[:] = 0
+            cr[:] = 0
+            dm, ds, v0j = d_m[j0:j1], d_s[j0:j1], v0[j0:j1]
+            gdm, gds, gv0 = g_consts[0, j0:j1], g_consts[1, j0:j1], g_consts[2, j0:j1]
+            for n in range(steps - 1, -1, -1):
+                gs = g_spikes[n, i, j0:j1] if has_g_spikes else nothing[:width]
+                gv = g_volts[n, i, j0:j1] if has_g_volts else nothing[:width]
+                out = g_cur[n, i, j0:j1]
+                m_pre, s_pre, r_pre, volts = pre[0, n, :width], pre[1, n, :width], pre[2, n, :width], pre[3, n, :width]
+                for k in range(width):
+                    a_spike = gs[k] + cr[k]
+                    a_v = gv[k] + a_spike * (inv_width if abs(volts[k] - theta) < half else zero)
+                    a_r = cr[k] - a_v * theta
+                    a_m = a_v * v0j[k] + cm[k]
+                    a_s = cs[k] - a_v * v0j[k]
+                    mp = m_pre[k]
+                    sp = s_pre[k]
+                    cm[k] = a_m * dm[k]
+                    cs[k] = a_s * ds[k]
+                    cr[k] = a_r * dm[k]
+                    out[k] = cm[k] + cs[k]
+                    gdm[k] += np.float64(a_m) * mp + np.float64(a_r) * r_pre[k]
+                    gds[k] += np.float64(a_s) * sp
+                    gv0[k] += np.float64(a_v) * (dm[k] * mp - ds[k] * sp)

@@ -69,6 +69,48 @@ def test_inference_path_equals_the_training_recurrence_and_follows_parameter_cha
     np.testing.assert_allclose(v_new, v_ref.detach(), atol=1e-5)
 
 
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("grads", ["spikes and volts", "volts", "spikes"])
+def test_compiled_training_path_equals_the_autograd_loop(dtype, grads):
+    torch.manual_seed(1)
+    neuron = CLIF(3, alpha_m=5.0, alpha_s=2.0).to(dtype)
+    x = (torch.rand(12, 4, 3, 5, 5, dtype=dtype) * 0.6).requires_grad_()
+    g_s, g_v = torch.randn(2, 12, 4, 3, 5, 5, dtype=dtype)
+    results = []
+    for forward in (neuron.forward, neuron._forward_reference):
+        neuron.zero_grad()
+        x.grad = None
+        s, v = forward(x)
+        loss = {"spikes and volts": (s * g_s).sum() + (v * g_v).sum(), "volts": (v * g_v).sum(),
+                "spikes": (s * g_s).sum()}[grads]
+        loss.backward()
+        results.append((s.detach(), v.detach(), x.grad, neuron.p_m.grad, neuron.p_s.grad))
+    (s, v, g_x, g_pm, g_ps), (s_ref, v_ref, g_x_ref, g_pm_ref, g_ps_ref) = results
+    assert s.sum() > 100 and g_x_ref.abs().sum() > 0 and g_pm_ref.abs().sum() > 0
+    # same operations in the same order: outputs and the current's gradient bit for bit
+    assert torch.equal(s, s_ref) and torch.equal(v, v_ref) and torch.equal(g_x, g_x_ref)
+    # the time constants' gradients are the same sums in another order (float64 accumulators)
+    rtol = 1e-5 if dtype == torch.float32 else 1e-12
+    np.testing.assert_allclose(g_pm, g_pm_ref, rtol=rtol, atol=rtol * float(g_pm_ref.abs().max()))
+    np.testing.assert_allclose(g_ps, g_ps_ref, rtol=rtol, atol=rtol * float(g_ps_ref.abs().max()))
+
+
+def test_compiled_training_path_tiles_wide_layers():
+    from sctn.neurons import BLOCK
+
+    torch.manual_seed(2)
+    neuron = CLIF(2, alpha_m=4.0, alpha_s=1.5)
+    x = (torch.rand(6, 2, 2, BLOCK + 37, dtype=torch.float32) * 0.7).requires_grad_()  # a tile and a remainder
+    g_v = torch.randn(6, 2, 2, BLOCK + 37)
+    grads = []
+    for forward in (neuron.forward, neuron._forward_reference):
+        x.grad = None
+        s, v = forward(x)
+        ((s + v * g_v).sum()).backward()
+        grads.append((s.detach(), x.grad))
+    assert torch.equal(grads[0][0], grads[1][0]) and torch.equal(grads[0][1], grads[1][1])
+
+
 def test_gradients_flow_through_the_surrogate_and_time_constants_learn():
     torch.manual_seed(0)
     net = SCTN()

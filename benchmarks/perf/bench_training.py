@@ -1,0 +1,104 @@
+"""Time one SCTN training step (forward, voltage loss, backward, Adam) with the compiled C-LIF and with
+the reference loop of torch ops; print JSON.
+
+    python -m benchmarks.perf.bench_training [--data FILE.h5] [--checkpoint CKPT] [--steps 5] [--repeat 3]
+        [--batch-segments 2] [--threads 1]
+
+A step is what `dvsot train` runs per mini-batch: the samples of --batch-segments segments (20
+positive + 40 negative each), encoded as 107x107 canvases. Without --data a synthetic 160x120
+sequence (a textured square, made in numpy) gives the segments. Each figure is the best of --repeat
+runs of --steps steps after one warm-up step (which compiles the numba kernels); the two paths start
+from the same weights and batches.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+
+def time_steps(model, batches, reference: bool, steps: int, repeat: int) -> dict:
+    """Best wall and CPU seconds per training step over `repeat` runs of `steps` steps (after a warm-up)."""
+    from sctn.loss import voltage_loss
+    from sctn.neurons import CLIF
+
+    forward = CLIF.forward
+    if reference:
+        CLIF.forward = CLIF._forward_reference  # type: ignore[method-assign]
+    try:
+        best = None
+        for _ in range(repeat):
+            net = copy.deepcopy(model)
+            net.train()
+            opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+            losses = []
+            for k in range(steps + 1):
+                if k == 1:
+                    start, cpu = time.perf_counter(), time.process_time()
+                x, iou, pos = batches[k % len(batches)]
+                loss = voltage_loss(net(x).max(dim=1).values, iou, pos, "exp")
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                losses.append(float(loss.detach()))
+            wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+            if best is None or wall < best[0]:
+                best = (wall, cpu, losses)
+    finally:
+        CLIF.forward = forward  # type: ignore[method-assign]
+    wall, cpu, losses = best
+    return {"path": "reference torch loop" if reference else "compiled", "steps": steps,
+            "s_per_step": round(wall / steps, 3), "cpu_s_per_step": round(cpu / steps, 3),
+            "losses": [round(v, 6) for v in losses]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
+    parser.add_argument("--checkpoint", help="SCTN checkpoint whose network is trained (default: the shipped one)")
+    parser.add_argument("--steps", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--batch-segments", type=int, default=2)
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args()
+    from dvsot.dataset import Dataset
+    from sctn.checkpoint import load_checkpoint
+    from sctn.train import segment_batch, usable_segments
+
+    torch.set_num_threads(args.threads)
+    model, _ = load_checkpoint(args.checkpoint)
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(args.data) if args.data else None
+        if path is None:
+            sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+            from synthetic import moving_square_file
+
+            path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=200, seed=1)
+        with Dataset(path) as ds:
+            usable = usable_segments(ds, 8.0)
+            picks = rng.choice(usable, (args.steps + 1, args.batch_segments), replace=len(usable) < 2 * args.steps)
+            batches = []
+            for row in picks:
+                segs = [ds.segment(int(i)) for i in row]
+                batches.append(segment_batch([(s.events, s.t0_us, s.box) for s in segs],
+                                             [(ds.width, ds.height)] * len(segs), rng, model.cfg))
+    runs = [time_steps(model, batches, reference, args.steps, args.repeat) for reference in (False, True)]
+    same = runs[0]["losses"] == runs[1]["losses"]
+    print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"), "threads": args.threads,
+                      "network": {"channels": model.cfg.channels, "fc": model.cfg.fc},
+                      "samples_per_step": int(batches[0][0].shape[0]), "runs": runs,
+                      "speedup": round(runs[1]["s_per_step"] / runs[0]["s_per_step"], 2),
+                      "same_losses": same}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
