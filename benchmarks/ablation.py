@@ -2,6 +2,7 @@
 over several seeds; print mean +- std of A, R and ARscore per loss.
 
     python -m benchmarks.ablation --train data/dvsot21 --test data/dvsot21 --seeds 3 --minutes 5
+        [--epochs 20 --segments-per-epoch 400 --finetune-iters 10]   # the tracker's own fine-tuning
     python -m benchmarks.ablation --ci          # the two tiny CI sequences (rendered first): a quick check
 """
 
@@ -16,7 +17,8 @@ import numpy as np
 
 
 def run_ablation(train_files: list[Path], test_files: list[Path], seeds: list[int], minutes: float | None,
-                 epochs: int, segments_per_epoch: int, n_candidates: int, max_segments: int | None) -> dict:
+                 epochs: int, segments_per_epoch: int, n_candidates: int, max_segments: int | None,
+                 finetune_iters: int = 3, finetune_search_iters: int = 10) -> dict:
     """{loss: {"runs": [{seed, A, R, ARscore}], "mean": {...}, "std": {...}}} over the given seeds."""
     import torch
 
@@ -38,7 +40,8 @@ def run_ablation(train_files: list[Path], test_files: list[Path], seeds: list[in
             ious = []
             for f in test_files:
                 bench = SCTNBenchTracker.__new__(SCTNBenchTracker)
-                bench.tracker = SCTNTracker(model, seed=seed, fast=True, finetune_iters=3, n_candidates=n_candidates)
+                bench.tracker = SCTNTracker(model, seed=seed, fast=True, finetune_iters=finetune_iters,
+                                            finetune_search_iters=finetune_search_iters, n_candidates=n_candidates)
                 bench.energy_every, bench._updates, bench._energy = 0, 0, None
                 with Dataset(f) as ds:
                     ious.append(run_sequence(bench, ds, "sctn", max_segments=max_segments).iou)
@@ -73,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--segments-per-epoch", type=int, default=200)
     p.add_argument("--candidates", type=int, default=256)
     p.add_argument("--max-segments", type=int, default=None)
+    p.add_argument("--finetune-iters", type=int, default=3,
+                   help="fine-tuning mini-batches per initialisation (the tracker's default is 10)")
+    p.add_argument("--finetune-search-iters", type=int, default=10, help="more mini-batches through the fast mode (forward_search)")
     p.add_argument("--out", help="also write the result as JSON here")
     a = p.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
@@ -92,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
                 p.error("give --train and --test, or --ci")
             train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
         result = run_ablation(train_files, test_files, list(range(a.seeds)), a.minutes, a.epochs,
-                              a.segments_per_epoch, a.candidates, a.max_segments)
+                              a.segments_per_epoch, a.candidates, a.max_segments, a.finetune_iters,
+                              a.finetune_search_iters)
     print(format_ablation(result))
     if a.out:
         Path(a.out).write_text(json.dumps(result, indent=2))
