@@ -78,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-segments", type=int, default=None)
     p.add_argument("--finetune-iters", type=int, default=3,
                    help="fine-tuning mini-batches per initialisation (the tracker's default is 10)")
-    p.add_argument("--finetune-search-iters", type=int, default=10, help="more mini-batches through the fast mode (forward_search)")
+    p.add_argument("--finetune-search-iters", type=int, default=10,
+                   help="more mini-batches through the fast mode (forward_search)")
     p.add_argument("--out", help="also write the result as JSON here")
     a = p.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
