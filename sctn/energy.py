@@ -31,24 +31,31 @@ def conv_fanout(conv: nn.Conv2d, in_hw: tuple[int, int]) -> torch.Tensor:
     return full * conv.out_channels
 
 
+def layer_ops(model: SCTN, spikes: list[torch.Tensor]) -> list[torch.Tensor]:
+    """AC operations per sample, (B,) per layer, driven by forward_record's spikes (input first); differentiable
+    in the spikes, so training can penalise them (TrainConfig.ops_penalty)."""
+    ops = []
+    h = w = model.cfg.input_size
+    for k, s in enumerate(spikes):
+        per_sample = s.sum(dim=0)  # (B, C, H, W) or (B, N) spike counts over the steps
+        if k < 3:
+            ops.append((per_sample * conv_fanout(model.convs[k], (h, w))).flatten(1).sum(dim=1))
+            h = w = model.cfg.conv_sizes()[k]
+        elif k < 6:
+            ops.append(per_sample.flatten(1).sum(dim=1) * model.fcs[k - 3].out_features)
+        else:
+            ops.append(per_sample.new_zeros(per_sample.shape[0]))  # the output layer drives nothing
+    return ops
+
+
 def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
     """AC operations and firing rates per layer for input spikes x (B, T, 2, H, W); totals are per sample."""
     with torch.no_grad():
         _, spikes = model.forward_record(x)
-    b = x.shape[0]
-    ops, rates, counts = {}, {}, {}
-    h = w = model.cfg.input_size
-    for k, (name, s) in enumerate(zip(LAYER_NAMES, spikes)):
-        counts[name] = float(s.sum()) / b
-        rates[name] = float(s.mean())
-        if k < 3:
-            fan = conv_fanout(model.convs[k], (h, w))
-            ops[name] = float((s.sum(dim=(0, 1)) * fan).sum()) / b  # (C, H, W) spike counts x fan-out
-            h = w = model.cfg.conv_sizes()[k]
-        elif k < 6:
-            ops[name] = counts[name] * model.fcs[k - 3].out_features
-        else:
-            ops[name] = 0.0
+        per_layer = layer_ops(model, spikes)
+    ops = {name: float(o.mean()) for name, o in zip(LAYER_NAMES, per_layer)}
+    counts = {name: float(s.sum()) / x.shape[0] for name, s in zip(LAYER_NAMES, spikes)}
+    rates = {name: float(s.mean()) for name, s in zip(LAYER_NAMES, spikes)}
     total = sum(ops.values())
     return {"ac_ops_per_sample": total, "ac_ops_by_layer": ops, "spikes_by_layer": counts, "firing_rate_by_layer": rates,
             "energy_pj_per_sample": total * E_AC_PJ}

@@ -3,8 +3,9 @@
 Per training segment (one with a ground-truth box of at least `min_box_px` a side): 20 positive
 (IoU >= 0.7) and 40 negative (IoU <= 0.5) uniform samples (paper §2.4), encoded as the events inside
 each box (sctn/encoding.py); the loss is the voltage loss of sctn/loss.py on each output neuron's
-maximum voltage over the time window. Adam. Every `val_every` steps a fixed held-out set of segments
-(every 10th segment of each file) is scored.
+maximum voltage over the time window, optionally plus a penalty on the synaptic operations the spikes
+drive (`ops_penalty`, the energy model of sctn/energy.py). Adam. Every `val_every` steps a fixed held-out
+set of segments (every 10th segment of each file) is scored.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import torch
 from dvsot.dataset import Dataset
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_search
+from sctn.energy import layer_ops
 from sctn.loss import THETA, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.samples import FINETUNE, TRAIN, labelled_samples
@@ -40,6 +42,7 @@ class TrainConfig:
     val_every: int = 50
     val_segments: int = 40
     max_minutes: float | None = None
+    ops_penalty: float = 0.0  # loss weight per million synaptic operations (ACs) per sample; 0 = off
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
 
@@ -71,6 +74,18 @@ def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
     return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
             "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
             "vmax_neg": float(vmax[~pos, 1].mean()) if (~pos).any() else float("nan")}
+
+
+def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
+                  cfg: TrainConfig) -> tuple[torch.Tensor, float | None]:
+    """The voltage loss of one batch, plus cfg.ops_penalty x the mean synaptic operations per sample in
+    millions (the ACs the spikes of conv1..fc2 drive; input events are given, not learned), and those ACs."""
+    if cfg.ops_penalty <= 0:
+        return voltage_loss(model(x).max(dim=1).values, iou, pos, cfg.loss), None
+    volts, spikes = model.forward_record(x)
+    ops = torch.stack(layer_ops(model, spikes)[1:]).sum(dim=0).mean()
+    loss = voltage_loss(volts.max(dim=1).values, iou, pos, cfg.loss) + cfg.ops_penalty * ops / 1e6
+    return loss, float(ops.detach())
 
 
 def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print) -> tuple[SCTN, dict]:
@@ -115,12 +130,13 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print)
                 items = [train_items[k] for k in order[b:b + cfg.batch_segments]]
                 x, iou, pos = segment_batch(*load(items), rng, cfg.network)
                 model.train()
-                vmax = model(x).max(dim=1).values
-                loss = voltage_loss(vmax, iou, pos, cfg.loss)
+                loss, ops = training_loss(model, x, iou, pos, cfg)
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
                 history["train_loss"].append(float(loss.detach()))
+                if ops is not None:
+                    history.setdefault("train_ops_per_sample", []).append(ops)
                 step += 1
                 bar.update(1)
                 bar.set_postfix(epoch=epoch, loss=f"{history['train_loss'][-1]:.4f}", refresh=False)

@@ -61,6 +61,28 @@ def test_training_lowers_the_loss_and_separates_positives_from_negatives(trained
     assert final["vmax_pos"] > final["vmax_neg"] + 0.3 and final["accuracy"] > 0.8
 
 
+def test_ops_penalty_trains_a_network_that_drives_fewer_synaptic_operations(trained):
+    from sctn.energy import count_synaptic_ops
+
+    model, history, train_file, test_file = trained
+    cfg = TrainConfig(epochs=3, segments_per_epoch=12, batch_segments=2, val_every=100, val_segments=2, seed=0, lr=3e-3,
+                      ops_penalty=20.0)
+    frugal, frugal_history = train([train_file], cfg, progress=False)
+    ops = frugal_history["train_ops_per_sample"]
+    assert "train_ops_per_sample" not in history and len(ops) == len(frugal_history["train_loss"])
+    with Dataset(test_file) as ds:
+        seg = ds.segment(5)
+        from sctn.encoding import encode_boxes
+
+        x = encode_boxes(seg.events, seg.t0_us, seg.box[None].astype(np.float64), 107, 10, 1000)
+    plain_ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
+    frugal_ops = count_synaptic_ops(frugal, x)["ac_ops_per_sample"]
+    assert np.mean(ops[-3:]) < 0.7 * np.mean(ops[:3]) and frugal_ops < 0.7 * plain_ops
+    # still a tracker: it tells the target from the background
+    final = frugal_history["val"][-1]
+    assert final["vmax_pos"] > final["vmax_neg"]
+
+
 def run_tracker(model, path, fast, crop="nearest"):
     tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, crop=crop,
                           finetune_search_iters=2)

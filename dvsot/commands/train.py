@@ -26,6 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="output channels of the three convolutions (default: sctn.network.NetworkConfig)")
     p.add_argument("--fc", type=int, nargs=2, metavar="N", default=None,
                    help="widths of the two hidden fully connected layers (default: sctn.network.NetworkConfig)")
+    p.add_argument("--ops-penalty", type=float, default=0.0, metavar="L",
+                   help="add L x synaptic operations per sample, in millions, to the loss (lower energy; default 0)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("--quiet", action="store_true")
 
@@ -48,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--{name.replace('_', '-')} must be >= 1")
     if args.lr <= 0:
         raise UserError("--lr must be positive")
+    if not args.ops_penalty >= 0:
+        raise UserError(f"--ops-penalty must be >= 0, got {args.ops_penalty}")
     net = {}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
@@ -63,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     cfg = TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
                       batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
-                      max_minutes=args.max_minutes, network=NetworkConfig(**net))
+                      max_minutes=args.max_minutes, ops_penalty=args.ops_penalty, network=NetworkConfig(**net))
     try:
         model, history = train(files, cfg, progress=not args.quiet)
     except ValueError as exc:
