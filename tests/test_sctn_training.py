@@ -139,4 +139,7 @@ def test_checkpoint_round_trip_and_train_cli_errors(trained, tmp_path, capsys):
     (tmp_path / "junk.h5").write_text("x")
     assert main(["train", "--data", str(tmp_path / "junk.h5"), "-o", str(out), "--quiet"]) == 2
     assert main(["train", "--data", str(train_file), "-o", str(tmp_path / "no" / "x.pt"), "--quiet"]) == 2
+    capsys.readouterr()
+    assert main(["train", "--data", str(train_file), "-o", str(out), "--ops-penalty", "-1", "--quiet"]) == 2
+    assert "--ops-penalty must be >= 0" in capsys.readouterr().err
     assert not out.exists()
