@@ -220,7 +220,7 @@ class Sampling(Strict):
 
     max_displacement_px: float = Field(0.75, gt=0, le=10)
     min_rate_hz: float = Field(100.0, gt=0)
-    max_rate_hz: float = Field(5000.0, gt=0)
+    max_rate_hz: float = Field(5000.0, gt=0, le=1e6)  # the file's 1 us resolution: no two samples share one
     points_per_object: int = Field(400, ge=8, le=100000)
 
     @model_validator(mode="after")

@@ -19,7 +19,7 @@ from dvsot.trajectory import pose_and_scale, pose_matrix, project
 
 
 def scene_projector(cfg: SceneConfig):
-    """A function t (s) -> (N, 2) pixel positions of tracked points: objects' vertices and the background."""
+    """A function t (s) -> (N, 2) pixel positions of tracked points (objects' and the background's; NaN behind the camera)."""
     k = cfg.sensor.intrinsics()
     n = cfg.sampling.points_per_object
     moving = []
@@ -48,19 +48,21 @@ def scene_projector(cfg: SceneConfig):
         cam = pose_matrix(cfg.camera, t, cam_seed)
         if bg.kind == "environment":
             parts[0] = static + cam[:3, 3]
-        uv = project(np.vstack(parts), cam, k)
-        inside = (uv[:, 0] >= -50) & (uv[:, 0] <= k.width + 50) & (uv[:, 1] >= -50) & (uv[:, 1] <= k.height + 50)
-        uv[~inside] = np.nan  # far outside the image: its motion is not seen
-        return uv
+        return project(np.vstack(parts), cam, k)
 
     return proj
 
 
+_MARGIN_PX = 50.0  # motion this far outside the image is not seen; covers the pixel filter's reach
+
+
 def sample_times(cfg: SceneConfig) -> np.ndarray:
     """Motion-bounded render times in seconds for a scene."""
-    s = cfg.sampling
+    s, k = cfg.sampling, cfg.sensor.intrinsics()
+    window = (-_MARGIN_PX, -_MARGIN_PX, k.width + _MARGIN_PX, k.height + _MARGIN_PX)
     return motion_bounded_times(scene_projector(cfg), 0.0, cfg.duration_s, s.max_displacement_px, s.min_rate_hz,
-                                s.max_rate_hz)
+                                s.max_rate_hz, window)
+
 
 
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,

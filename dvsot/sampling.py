@@ -11,7 +11,9 @@ between consecutive samples no tracked point moves more than `max_displacement_p
 maximum rate caps the step (then the step is 1/max_rate_hz and the bound may be exceeded). The last
 sample is exactly t_end; a remainder shorter than 1 us (the file's time resolution) is merged into the
 last step so that no two samples share a microsecond timestamp. Points that are NaN (behind the
-camera, out of the projection) at either end of an interval are ignored for that interval.
+camera) at either end of an interval are ignored for that interval; with a `window` (the image and a
+margin, in pixels), so are points outside it at both ends. A point that is outside at one end and
+inside at the other counts, so a fast object entering the view within one step still bounds it.
 
 Shrinking the step in proportion to the overshoot (rather than halving it) gives the same guarantee
 as bisection with fewer renders. The check compares positions at the two ends of an interval, so a
@@ -26,16 +28,27 @@ from typing import Callable
 import numpy as np
 
 
-def max_displacement(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest Euclidean distance (pixels) between corresponding points visible in both arrays."""
+Window = tuple[float, float, float, float]  # x0, y0, x1, y1 in pixels
+
+
+def max_displacement(a: np.ndarray, b: np.ndarray, window: Window | None = None) -> float:
+    """Largest distance (pixels) between corresponding finite points, inside `window` at either end if given."""
     d = np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1])
-    d = d[np.isfinite(d)]
+    seen = np.isfinite(d)
+    if window is not None:
+        seen &= _inside(a, window) | _inside(b, window)
+    d = d[seen]
     return float(d.max()) if d.size else 0.0
+
+
+def _inside(p: np.ndarray, window: Window) -> np.ndarray:
+    x0, y0, x1, y1 = window
+    return (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
 
 
 def motion_bounded_times(project: Callable[[float], np.ndarray], t_start_s: float, t_end_s: float,
                          max_displacement_px: float = 0.75, min_rate_hz: float = 100.0,
-                         max_rate_hz: float = 5000.0) -> np.ndarray:
+                         max_rate_hz: float = 5000.0, window: Window | None = None) -> np.ndarray:
     """Sample times (seconds, increasing, from t_start_s to t_end_s) bounding image motion between samples."""
     if not t_end_s > t_start_s:
         raise ValueError(f"t_end_s ({t_end_s}) must be after t_start_s ({t_start_s})")
@@ -49,14 +62,14 @@ def motion_bounded_times(project: Callable[[float], np.ndarray], t_start_s: floa
     t, p = float(t_start_s), _points(project, t_start_s)
     while t < t_end_s:
         probe = min(t + dt_min, t_end_s)
-        speed = max_displacement(p, _points(project, probe)) / (probe - t)
+        speed = max_displacement(p, _points(project, probe), window) / (probe - t)
         dt = max_displacement_px / speed if speed > 0 else dt_max
         dt = float(np.clip(dt, dt_min, dt_max))
         while True:
             # a remainder under 1 us would round onto the same microsecond as this sample: merge it
             t_next = t_end_s if t + dt > t_end_s - _MERGE_S else t + dt
             q = _points(project, t_next)
-            moved = max_displacement(p, q)
+            moved = max_displacement(p, q, window)
             if moved <= tol or dt <= dt_min:
                 break
             dt = max(dt * 0.95 * max_displacement_px / moved, dt_min)

@@ -45,6 +45,7 @@ def write(tmp_path, text, name="s.yaml"):
     (GOOD.replace("shape: cube", "shape: dodecahedron"), "field 'target.shape'"),
     (GOOD.replace("shape: cube", "mesh: missing.obj"), "file not found"),
     (GOOD + "sampling: {min_rate_hz: 500, max_rate_hz: 100}\n", "max_rate_hz must be >= min_rate_hz"),
+    (GOOD + "sampling: {max_rate_hz: 2.0e6}\n", "field 'sampling.max_rate_hz': Input should be less than or equal to"),
     (GOOD.replace("[{t: 0, location: [0, 0, 0]}]", "[{t: 0.5, location: [0, 0, 0]}, {t: 0.1}]"),
      "keyframe times must increase"),
     ("name: t\n  bad: [\n", "YAML syntax error"),

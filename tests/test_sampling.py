@@ -68,3 +68,28 @@ def test_summary_counts_and_bad_arguments():
             motion_bounded_times(zero, 0.0, 1.0, **kwargs)
     with pytest.raises(ValueError, match="K, 2"):
         motion_bounded_times(lambda t: np.zeros(3), 0.0, 1.0)
+
+
+def test_point_entering_the_window_within_one_step_bounds_it():
+    # a point racing in from far outside (8000 px/s) and a static one inside a 100 x 100 window
+    proj = lambda t: np.array([[-2000.0 + 8000.0 * t, 50.0], [50.0, 50.0]])  # noqa: E731
+    window = (0.0, 0.0, 100.0, 100.0)
+    times = motion_bounded_times(proj, 0.0, 0.3, 0.75, 100.0, 1e5, window)
+    moved = np.array([max_displacement(proj(a), proj(b), window) for a, b in zip(times[:-1], times[1:])])
+    assert moved.max() <= 0.75 * (1 + 1e-9)
+    inside = np.array([proj(t)[0, 0] for t in times]) >= 0.0
+    entered = np.flatnonzero(inside)[0]
+    assert times[entered] - times[entered - 1] <= 0.75 / 8000 * (1 + 1e-6)  # the entering step is a short one
+    # while it is outside at both ends of a step, it does not count: the static point gives min-rate steps
+    assert np.isclose(times[1] - times[0], 0.01)
+    # once it has left (x > 100 after t = 0.2625) the steps go back to the minimum rate
+    after = times[times >= 0.2625]
+    np.testing.assert_allclose(np.diff(after)[:-1], 0.01)
+    assert len(after) >= 3
+
+
+def test_max_displacement_window_keeps_points_inside_at_either_end():
+    a = np.array([[-500.0, 5.0], [5.0, 5.0], [-20.0, 5.0]])
+    b = np.array([[-400.0, 5.0], [6.0, 5.0], [3.0, 5.0]])
+    assert max_displacement(a, b) == 100.0
+    assert max_displacement(a, b, (0.0, 0.0, 10.0, 10.0)) == 23.0  # the far point is out at both ends
