@@ -11,9 +11,10 @@ Semantics (after ESIM, Rebecq et al. 2018), per pixel:
   reference moves by C per crossing (ref += pol * k_max * C).
 * C+ and C- are separate (cp, cn). Threshold mismatch: with mismatch="fixed" (default) each pixel
   draws its own C+ ~ N(cp, sigma_cp) and C- ~ N(cn, sigma_cn) once, clamped to >= min_threshold;
-  with mismatch="per_interval" they are drawn anew for every interval, as ESIM does.
+  with mismatch="per_interval" they are drawn anew for every interval, as ESIM does (where a smaller
+  draw leaves levels between ref and L0, they are skipped; ESIM's loop emits nothing then: docs/events.md).
 * Refractory period R: a crossing closer than R to the pixel's last *emitted* event is dropped and the
-  reference still advances (ESIM's behaviour). Crossings inside one interval are equally spaced in
+  reference still advances (ESIM's behaviour); the test is on exact times, before rounding to 1 us. Crossings inside one interval are equally spaced in
   time (linear interpolation), so the kept ones are found in closed form: the first kept index
   j0 = ceil((R - (t_first - t_last)) / dt), then every m = ceil(R / dt)-th crossing.
 * Noise beyond ESIM (flagged ``signal=False``; they do not move the reference): shot noise, events
