@@ -9,36 +9,40 @@ file, the field, the YAML line and what is wrong.
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, ValidationError, model_validator
 
 from dvsot.errors import UserError
 from dvsot.events import EventParams
 
-Vec3 = tuple[float, float, float]
-Colour = tuple[float, float, float]
+# Numbers must be numbers: no "1.6" strings or true/false where a number goes (an int is a fine float)
+Float = Annotated[float, StrictType()]
+Int = Annotated[int, StrictType()]
+Vec3 = tuple[Float, Float, Float]
+Colour = tuple[Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)]]
 
 
 class Strict(BaseModel):
-    """Base model: unknown keys are errors."""
+    """Base model: unknown keys are errors, and so are NaN and infinite numbers."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class Sensor(Strict):
     """Image size (pixels) and lens: focal_mm + sensor_width_mm, or fx (+ cx, cy) in pixels."""
 
-    width: int = Field(640, ge=8, le=8192)
-    height: int = Field(480, ge=8, le=8192)
-    focal_mm: float | None = Field(None, gt=0)
-    sensor_width_mm: float = Field(36.0, gt=0)
-    fx: float | None = Field(None, gt=0, description="focal length in pixels (overrides focal_mm)")
-    fy: float | None = Field(None, gt=0, description="must equal fx: square pixels")
-    cx: float | None = None
-    cy: float | None = None
+    width: Int = Field(640, ge=8, le=8192)
+    height: Int = Field(480, ge=8, le=8192)
+    focal_mm: Float | None = Field(None, gt=0)
+    sensor_width_mm: Float = Field(36.0, gt=0)
+    fx: Float | None = Field(None, gt=0, description="focal length in pixels (overrides focal_mm)")
+    fy: Float | None = Field(None, gt=0, description="must equal fx: square pixels")
+    cx: Float | None = None
+    cy: Float | None = None
 
     @model_validator(mode="after")
     def _lens(self) -> "Sensor":
@@ -61,11 +65,11 @@ class Sensor(Strict):
 class Keyframe(Strict):
     """A pose at time t (seconds): location (m), rotation (Euler XYZ degrees) or look_at (m), scale."""
 
-    t: float = Field(ge=0)
+    t: Float = Field(ge=0)
     location: Vec3 | None = None
     rotation_deg: Vec3 | None = None
     look_at: Vec3 | None = None
-    scale: float | Vec3 | None = None
+    scale: Float | Vec3 | None = None
 
     @model_validator(mode="after")
     def _one_rotation(self) -> "Keyframe":
@@ -79,8 +83,8 @@ class Trajectory(Strict):
 
     keyframes: list[Keyframe] = Field(min_length=1)
     interpolation: Literal["linear", "smooth"] = "smooth"
-    shake_deg: float = Field(0.0, ge=0, le=20, description="hand-held rotation jitter amplitude, degrees")
-    shake_hz: float = Field(1.5, gt=0, le=50)
+    shake_deg: Float = Field(0.0, ge=0, le=20, description="hand-held rotation jitter amplitude, degrees")
+    shake_hz: Float = Field(1.5, gt=0, le=50)
 
     @model_validator(mode="after")
     def _ordered(self) -> "Trajectory":
@@ -105,12 +109,12 @@ class Texture(Strict):
     """A procedural texture (Blender shader nodes) or an image file, mapped through a colour ramp."""
 
     type: TextureKind
-    scale: float = Field(5.0, gt=0)
-    detail: float = Field(4.0, ge=0, le=15)
-    distortion: float = Field(0.0, ge=0)
+    scale: Float = Field(5.0, gt=0)
+    detail: Float = Field(4.0, ge=0, le=15)
+    distortion: Float = Field(0.0, ge=0)
     colors: list[Colour] | None = Field(None, min_length=2, description="linear RGB ramp, dark to light")
     path: Path | None = Field(None, description="image file, for type: image")
-    seed: float = Field(0.0, description="offset of the procedural pattern (its 'W' coordinate)")
+    seed: Float = Field(0.0, description="offset of the procedural pattern (its 'W' coordinate)")
 
     @model_validator(mode="after")
     def _image(self) -> "Texture":
@@ -124,8 +128,8 @@ class Material(Strict):
 
     color: Colour = (0.8, 0.8, 0.8)
     texture: Texture | None = None
-    roughness: float = Field(0.6, ge=0, le=1)
-    emission: float = Field(0.0, ge=0, description="emission strength (W/m^2-ish), 0 = none")
+    roughness: Float = Field(0.6, ge=0, le=1)
+    emission: Float = Field(0.0, ge=0, description="emission strength (W/m^2-ish), 0 = none")
 
 
 Shape = Literal["cube", "sphere", "ball", "cylinder", "torus", "star", "bottle", "cat", "plane"]
@@ -137,7 +141,7 @@ class SceneObject(Strict):
     name: str | None = None
     shape: Shape | None = None
     mesh: Path | None = Field(None, description="OBJ, PLY, STL, GLB or glTF file")
-    size_m: float = Field(1.0, gt=0, description="largest extent after scaling, metres")
+    size_m: Float = Field(1.0, gt=0, description="largest extent after scaling, metres")
     material: Material = Material()
     trajectory: Trajectory
 
@@ -163,25 +167,25 @@ class Background(Strict):
     material: Material = Material(texture=Texture(type="noise"))
     location: Vec3 = (0.0, 8.0, 0.0)
     rotation_deg: Vec3 = (90.0, 0.0, 0.0)
-    size_m: float = Field(40.0, gt=0)
+    size_m: Float = Field(40.0, gt=0)
 
 
 class Light(Strict):
     """A light: sun (direction from rotation), point or area (location); strength in Blender units."""
 
     type: Literal["sun", "point", "area"] = "sun"
-    strength: float = Field(3.0, ge=0)
+    strength: Float = Field(3.0, ge=0)
     color: Colour = (1.0, 1.0, 1.0)
     location: Vec3 = (0.0, -6.0, 6.0)
     rotation_deg: Vec3 = (40.0, 0.0, 20.0)
-    size_m: float = Field(1.0, gt=0)
+    size_m: Float = Field(1.0, gt=0)
 
 
 class World(Strict):
     """Ambient light from the world: a uniform colour and strength."""
 
     color: Colour = (0.05, 0.05, 0.05)
-    strength: float = Field(1.0, ge=0)
+    strength: Float = Field(1.0, ge=0)
 
 
 class Render(Strict):
@@ -192,9 +196,9 @@ class Render(Strict):
     """
 
     engine: Literal["cycles"] = "cycles"
-    samples: int = Field(1, ge=1, le=4096)
-    threads: int = Field(0, ge=0, description="0 = all cores")
-    max_bounces: int = Field(2, ge=0, le=32)
+    samples: Int = Field(1, ge=1, le=4096)
+    threads: Int = Field(0, ge=0, description="0 = all cores")
+    max_bounces: Int = Field(2, ge=0, le=32)
     persistent_data: bool = True
     amodal_mask: Literal["raster", "render"] = Field(
         "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
@@ -210,18 +214,18 @@ class Render(Strict):
         "auto", description="bake the background plane's procedural texture into an image once, before the first "
                            "render; true: any procedural kind; auto: only the smooth, costly ones (noise, voronoi, "
                            "wave, magic and their presets), not brick/checker/gradient; false: never")
-    bake_texels_per_px: float = Field(2.0, gt=0, le=8, description="bake texels per on-screen pixel (closest approach)")
-    bake_max_size: int = Field(4096, ge=64, le=16384, description="largest side of the bake image, texels")
-    bake_samples: int = Field(1, ge=1, le=64, description="Cycles samples per texel of the bake")
+    bake_texels_per_px: Float = Field(2.0, gt=0, le=8, description="bake texels per on-screen pixel (closest approach)")
+    bake_max_size: Int = Field(4096, ge=64, le=16384, description="largest side of the bake image, texels")
+    bake_samples: Int = Field(1, ge=1, le=64, description="Cycles samples per texel of the bake")
 
 
 class Sampling(Strict):
     """Motion-bounded render times: no visible point moves more than max_displacement_px between samples."""
 
-    max_displacement_px: float = Field(0.75, gt=0, le=10)
-    min_rate_hz: float = Field(100.0, gt=0)
-    max_rate_hz: float = Field(5000.0, gt=0, le=1e6)  # the file's 1 us resolution: no two samples share one
-    points_per_object: int = Field(400, ge=8, le=100000)
+    max_displacement_px: Float = Field(0.75, gt=0, le=10)
+    min_rate_hz: Float = Field(100.0, gt=0)
+    max_rate_hz: Float = Field(5000.0, gt=0, le=1e6)  # the file's 1 us resolution: no two samples share one
+    points_per_object: Int = Field(400, ge=8, le=100000)
 
     @model_validator(mode="after")
     def _rates(self) -> "Sampling":
@@ -237,9 +241,9 @@ class SceneConfig(Strict):
     split: Literal["train", "test", ""] = ""
     description: str = ""
     challenges: list[str] = []
-    seed: int = Field(0, ge=0, description="master seed: every other seed derives from it")
-    duration_s: float = Field(gt=0, le=600)
-    segment_ms: float = Field(10.0, gt=0)
+    seed: Int = Field(0, ge=0, description="master seed: every other seed derives from it")
+    duration_s: Float = Field(gt=0, le=600)
+    segment_ms: Float = Field(10.0, gt=0)
     sensor: Sensor = Sensor()
     camera: Trajectory
     target: SceneObject
@@ -296,7 +300,10 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
     """Validate scene YAML text; relative asset paths resolve against base_dir. Raises UserError."""
     try:
         node = yaml.compose(text)
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)
+    except _DuplicateKey as exc:
+        raise UserError(f"{source}:{exc.problem_mark.line + 1}: field '{exc.key}' is given twice "
+                        f"(first on line {exc.first_line})") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f":{mark.line + 1}" if mark else ""
@@ -311,11 +318,13 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
-        line = _line_of(node, loc)
         field = ".".join(str(p) for p in loc) or "(top level)"
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             msg = "unknown field"
+        if field in (overrides or {}):  # the value came from the command line, not from the file
+            raise UserError(f"{source}: field '{field}' = {overrides[field]!r} (an override): {msg}") from None
+        line = _line_of(node, loc)
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
     try:
         cfg.event_params()
@@ -329,6 +338,41 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
     return cfg
 
 
+class _DuplicateKey(yaml.constructor.ConstructorError):
+    def __init__(self, key: str, first: yaml.Node, again: yaml.Node) -> None:
+        super().__init__(None, None, f"duplicate key {key!r}", again.start_mark)
+        self.key, self.first_line = key, first.start_mark.line + 1
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """The safe loader, refusing a key given twice in one mapping (plain YAML keeps the last silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: dict = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise _DuplicateKey(str(key), seen[key], key_node)
+            seen[key] = key_node
+        return super().construct_mapping(node, deep)
+
+
+# YAML 1.1 (PyYAML) reads 1e-3 and 2.0e6 as strings; read them as the numbers they are, as YAML 1.2 does
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+
+                 |[-+]?[0-9][0-9_]*\.[0-9_]*
+                 |[-+]?\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                 |[-+]?\.(?:inf|Inf|INF)
+                 |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def yaml_value(text: str) -> Any:
+    """One YAML value as a scene file would read it (for KEY=VALUE overrides on a command line)."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)
+
+
 def _set_path(data: dict, dotted: str, value: Any) -> None:
     keys = dotted.split(".")
     for k in keys[:-1]:
@@ -337,28 +381,58 @@ def _set_path(data: dict, dotted: str, value: Any) -> None:
 
 
 def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) -> None:
-    """Resolve mesh and image paths against the scene file's folder; a missing file is an error."""
-    def fix(obj: Any, attr: str, loc: tuple) -> None:
+    """Resolve mesh and image paths against the scene file's folder and read each once: a missing or
+    unreadable file is an error here, before anything is rendered (Blender itself only warns)."""
+    def fix(obj: Any, attr: str, loc: tuple, read) -> None:
         p = getattr(obj, attr)
         if p is None:
             return
         full = p if p.is_absolute() else (base / p)
+        line = _line_of(node, loc)
+        where = f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}'"
         if not full.is_file():
-            line = _line_of(node, loc)
-            raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}': "
-                            f"file not found: {full}")
+            raise UserError(f"{where}: file not found: {full}")
+        try:
+            read(full)
+        except UserError as exc:
+            raise UserError(f"{where}: {exc}") from None
         setattr(obj, attr, full.resolve())
 
     def material(m: Material, loc: tuple) -> None:
         if m.texture is not None:
-            fix(m.texture, "path", loc + ("texture", "path"))
+            fix(m.texture, "path", loc + ("texture", "path"), _read_image)
 
-    fix(cfg.target, "mesh", ("target", "mesh"))
+    from dvsot.shapes import load_mesh_file
+
+    fix(cfg.target, "mesh", ("target", "mesh"), load_mesh_file)
     material(cfg.target.material, ("target", "material"))
     material(cfg.background.material, ("background", "material"))
     for i, o in enumerate(cfg.objects):
-        fix(o, "mesh", ("objects", i, "mesh"))
+        fix(o, "mesh", ("objects", i, "mesh"), load_mesh_file)
         material(o.material, ("objects", i, "material"))
+
+
+def _read_image(path: Path) -> None:
+    """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels."""
+    if path.suffix.lower() == ".exr":
+        import OpenEXR
+
+        try:
+            with OpenEXR.File(str(path)) as f:
+                ok = any(part.channels for part in f.parts)
+        except Exception as exc:  # OpenEXR raises several kinds for damaged files
+            raise UserError(f"{path}: cannot read image ({' '.join(str(exc).split())[:200]})") from None
+    else:
+        import cv2
+
+        level = cv2.getLogLevel()
+        cv2.setLogLevel(2)  # errors only: its decoder warnings would precede our one line
+        try:
+            ok = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) is not None
+        finally:
+            cv2.setLogLevel(level)
+    if not ok:
+        raise UserError(f"{path}: cannot read image (not an image file OpenCV or OpenEXR can decode)")
 
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> SceneConfig:

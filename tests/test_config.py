@@ -49,6 +49,14 @@ def write(tmp_path, text, name="s.yaml"):
     (GOOD.replace("[{t: 0, location: [0, 0, 0]}]", "[{t: 0.5, location: [0, 0, 0]}, {t: 0.1}]"),
      "keyframe times must increase"),
     ("name: t\n  bad: [\n", "YAML syntax error"),
+    (GOOD + "seed: 1\nseed: 2\n", ":10: field 'seed' is given twice (first on line 9)"),
+    (GOOD + "seed: true\n", ":9: field 'seed': Input should be a valid integer"),
+    (GOOD + "sensor: {width: 64.0}\n", "field 'sensor.width': Input should be a valid integer"),
+    (GOOD.replace("shape: cube", "shape: cube\n  size_m: '1.6'"), "field 'target.size_m': Input should be a valid number"),
+    (GOOD.replace("location: [0, 0, 0]}]\n", "location: [.nan, 0, 0]}]\n"),
+     "field 'target.trajectory.keyframes.0.location.0': Input should be a finite number"),
+    (GOOD + "world: {color: [-1, 0.5, 0.5]}\n", "field 'world.color.0': Input should be greater than or equal to 0"),
+    (GOOD + "lights: [{strength: .inf}]\n", "field 'lights.0.strength': Input should be a finite number"),
     ("- just\n- a list\n", "must be a mapping"),
 ])
 def test_bad_scene_files(tmp_path, text, words):
@@ -86,3 +94,38 @@ def test_mesh_file_resolves_relative_to_the_scene(tmp_path):
     (tmp_path / "bad.obj").write_text("this is not a mesh\n")
     with pytest.raises(UserError, match="bad.obj"):
         mesh_for(None, tmp_path / "bad.obj")
+
+
+def test_an_override_is_blamed_on_the_command_line_not_the_file(tmp_path):
+    p = write(tmp_path, GOOD)
+    with pytest.raises(UserError, match=r"s.yaml: field 'sensor.width' = 4 \(an override\): .*greater than or equal to 8"):
+        load_scene(p, {"sensor.width": 4})
+    with pytest.raises(UserError, match=r"field 'duration_s' = nan \(an override\): Input should be a finite number"):
+        load_scene(p, {"duration_s": float("nan")})
+
+
+@pytest.mark.parametrize("name, content, words", [
+    ("m.obj", b"this is no mesh\n", "mesh file holds no triangles"),
+    ("m.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 9\n", "cannot read mesh"),
+    ("m.stl", b"", "mesh file holds no triangles"),
+])
+def test_an_unreadable_mesh_names_the_scene_file_and_field(tmp_path, name, content, words):
+    (tmp_path / name).write_bytes(content)
+    p = write(tmp_path, GOOD.replace("shape: cube", f"mesh: {name}"))
+    with pytest.raises(UserError) as info:
+        load_scene(p)
+    msg = str(info.value)
+    assert msg.startswith(f"{p}:6: field 'target.mesh': {tmp_path / name}: ") and words in msg
+
+
+def test_an_unreadable_image_texture_names_the_scene_file_and_field(tmp_path):
+    import cv2
+    import numpy as np
+
+    cv2.imwrite(str(tmp_path / "good.png"), np.full((8, 8, 3), 128, np.uint8))
+    (tmp_path / "bad.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\xff" * 64)
+    text = GOOD + "background:\n  material: {texture: {type: image, path: %s}}\n"
+    assert load_scene(write(tmp_path, text % "good.png")).background.material.texture.path == tmp_path / "good.png"
+    p = write(tmp_path, text % "bad.png")
+    with pytest.raises(UserError, match=r"s.yaml:10: field 'background.material.texture.path': .*bad.png: cannot read image"):
+        load_scene(p)

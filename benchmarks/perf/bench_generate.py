@@ -24,12 +24,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _setting(text: str) -> tuple[str, object]:
-    import yaml
+    from dvsot.config import yaml_value
 
     key, sep, value = text.partition("=")
     if not sep or not key:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
-    return key.strip(), yaml.safe_load(value)
+    return key.strip(), yaml_value(value)
 
 
 def main() -> None:

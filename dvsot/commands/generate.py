@@ -64,6 +64,35 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
     return summary
 
 
+def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
+    """The dataset file of each scene, every output path checked (and --out-dir made) before rendering."""
+    from pathlib import Path
+
+    from dvsot.errors import UserError
+    from dvsot.outputs import output_dir, output_file
+
+    if args.output:
+        outs = [output_file(args.output, "-o", paths)]
+    else:
+        out_dir = output_dir(args.out_dir or "out", "--out-dir")
+        outs = [out_dir / f"{c.name}.h5" for c in configs]
+        for o, p in zip(outs, paths):
+            if o.is_dir():
+                raise UserError(f"{o}: the output of {p} names a directory, not a file")
+    seen: dict = {}
+    for o, p in zip(outs, paths):
+        if o.resolve() in seen:
+            raise UserError(f"{p}: scene name gives the same output {o} as {seen[o.resolve()]}; rename one")
+        seen[o.resolve()] = p
+        if args.preview and o.with_suffix(".gif").is_dir():
+            raise UserError(f"{o.with_suffix('.gif')}: --preview would write this path, a directory")
+    if args.keep_frames:
+        output_dir(args.keep_frames, "--keep-frames")
+    if not args.output:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    return outs
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate every scene first (nothing is rendered if one is bad), then render them."""
     import glob
@@ -87,15 +116,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("-o names one output file; use --out-dir for several scenes")
     if args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
-    if args.output:
-        outs = [Path(args.output)]
-    else:
-        out_dir = Path(args.out_dir or "out")
-        out_dir.mkdir(parents=True, exist_ok=True)
-        outs = [out_dir / f"{c.name}.h5" for c in configs]
-    for o in outs:
-        if not o.parent.is_dir():
-            raise UserError(f"{o}: output directory {o.parent} does not exist")
+    outs = _outputs(args, paths, configs)
     jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, args.keep_frames)
             for p, o in zip(paths, outs)]
     if args.jobs == 1 or len(jobs) == 1:

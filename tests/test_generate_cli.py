@@ -1,0 +1,55 @@
+"""`dvsot generate` checks every output path before it renders anything (no Blender needed here)."""
+
+import hashlib
+
+import pytest
+
+from dvsot.cli import main
+
+SCENE = """name: cli
+duration_s: 0.02
+sensor: {width: 64, height: 48}
+camera:
+  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
+target:
+  shape: cube
+  trajectory:
+    keyframes: [{t: 0, location: [0, 0, 0]}]
+"""
+
+
+def digest(path):
+    return hashlib.md5(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture
+def scene(tmp_path):
+    p = tmp_path / "cli.yaml"
+    p.write_text(SCENE)
+    return p
+
+
+def snapshot(root):
+    return sorted((str(p.relative_to(root)), p.is_dir() or digest(p)) for p in root.rglob("*"))
+
+
+@pytest.mark.parametrize("extra, words", [
+    (lambda d, s: ["-o", str(d / "adir")], "-o names a directory, not a file"),
+    (lambda d, s: ["--out-dir", str(d / "afile")], "--out-dir names a file, not a directory"),
+    (lambda d, s: ["--out-dir", str(d / "afile" / "sub")], "is a file, not a directory"),
+    (lambda d, s: ["-o", str(d / "o.h5"), "--keep-frames", str(d / "afile")], "--keep-frames names a file"),
+    (lambda d, s: ["-o", str(d / "prev.h5"), "--preview"], "--preview would write this path, a directory"),
+    (lambda d, s: ["-o", str(s)], "-o would overwrite an input file"),
+    (lambda d, s: [str(s), "--out-dir", str(d / "multi")], "gives the same output"),
+    (lambda d, s: ["-o", str(d / "o.h5"), "--duration", "nan"], "field 'duration_s' = nan (an override)"),
+])
+def test_bad_output_paths_fail_before_any_work(tmp_path, scene, capsys, extra, words):
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "prev.gif").mkdir()
+    (tmp_path / "afile").write_text("keep me")
+    (tmp_path / "prev.h5").write_bytes(b"an earlier dataset")
+    before = snapshot(tmp_path)
+    assert main(["generate", str(scene), *extra(tmp_path, scene), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert snapshot(tmp_path) == before  # nothing made, nothing changed
