@@ -127,7 +127,8 @@ def plot_firing_rates(firing: dict, out_png: Path) -> Path:
     ax.set_title(f"SCTN firing rate per layer ({firing['segments']} segments)")
     fig.colorbar(im, ax=ax, label="spikes / neuron / step")
     fig.tight_layout()
+    out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=120)
-    plt.close(fig)
-    return out_png
+    from benchmarks.pictures import save_figure
+
+    return save_figure(fig, out_png, dpi=120)

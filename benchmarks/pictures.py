@@ -62,6 +62,20 @@ def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    save_figure(fig, out, dpi=110)
+    return out
+
+
+def save_figure(fig, out_png: str | os.PathLike, dpi: int) -> Path:
+    """Save a figure as PNG via a temp file and a rename (a picture is never half-written); closes the figure."""
+    import matplotlib.pyplot as plt
+
+    out = Path(out_png)
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    try:
+        fig.savefig(tmp, dpi=dpi, format="png")  # format given: the temp name does not end in .png
+        tmp.replace(out)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)
     return out

@@ -31,6 +31,11 @@ from dvsot.dataset import Dataset
 MIN_BOX_PX = 1.0
 
 
+def one_line(exc: BaseException) -> str:
+    """'Type: message' on one line (torch and pydantic messages span several, which would break the report)."""
+    return " ".join(f"{type(exc).__name__}: {exc}".split())
+
+
 @dataclass
 class SequenceResult:
     """Per-segment outcome of one tracker on one sequence; `iou` is NaN for segments that do not count."""
@@ -94,7 +99,7 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
     except Exception as exc:  # a crashing tracker fails this sequence only
         last = traceback.extract_tb(exc.__traceback__)[-1]
         return SequenceResult(name, dataset.name, np.full(n, np.nan), preds, inits, spent, tracked,
-                              error=f"{type(exc).__name__}: {exc} ({last.filename.split('/')[-1]}:{last.lineno})",
+                              error=f"{one_line(exc)} ({last.filename.split('/')[-1]}:{last.lineno})",
                               init_seconds=init_spent)
     energy = None
     if energies:

@@ -10,6 +10,7 @@ import csv
 import io
 import json
 import math
+import os
 from pathlib import Path
 
 from benchmarks.metrics import pooled, scores
@@ -157,17 +158,27 @@ def to_latex(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write text to path via a temp file and a rename, so a reader never sees half a file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text(text)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)  # only left when the write or the rename failed
+    return path
+
+
+TABLE_FILES = {"txt": "table.txt", "csv": "results.csv", "json": "results.json", "md": "results.md",
+               "tex": "results.tex"}
+
+
 def write_tables(summary: dict, out_dir: str | Path) -> dict[str, Path]:
-    """Write results.{csv,json,md,tex} and table.txt into out_dir; returns the paths by format."""
+    """Write results.{csv,json,md,tex} and table.txt into out_dir, each atomically; returns the paths by format."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = {"txt": ("table.txt", terminal(summary) + "\n"), "csv": ("results.csv", to_csv(summary)),
-             "json": ("results.json", to_json(summary)), "md": ("results.md", to_markdown(summary)),
-             "tex": ("results.tex", to_latex(summary))}
-    paths = {}
-    for fmt, (name, text) in files.items():
-        tmp = out / f".{name}.tmp"
-        tmp.write_text(text)
-        tmp.replace(out / name)
-        paths[fmt] = out / name
-    return paths
+    # every text is made before the first file is replaced: a formatting error leaves all the old tables
+    texts = {"txt": terminal(summary) + "\n", "csv": to_csv(summary), "json": to_json(summary),
+             "md": to_markdown(summary), "tex": to_latex(summary)}
+    return {fmt: write_text_atomic(out / TABLE_FILES[fmt], text) for fmt, text in texts.items()}

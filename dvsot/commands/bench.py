@@ -7,11 +7,29 @@ Examples:
 
 Segments that count: see benchmarks/protocol.py (initialisation segments and segments without
 ground truth never count; a failure, IoU < 0.5, re-initialises on the next segment).
+
+Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
+(loaded into the model), each tracker built once with its --option values, and the output paths.
+--checkpoint and sctn.* options are errors unless --tracker sctn is given.
+
+Outputs are written only when every run has finished, each file atomically (temp file, then
+rename), so an interrupted run or bad input never leaves a table half-written or replaced.
+
+Exit status:
+  0  every tracker ran on every sequence; tables written.
+  1  a tracker raised on some sequence (a runtime failure): the tables are still written, with that
+     cell marked "failed" and the run left out of the "all" column, and stderr gets one line per
+     failure naming tracker, sequence and error.
+  2  bad input: one line on stderr naming the flag or file; nothing run, nothing written.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
 
 DEFAULT_DATA = "data/dvsot21"
 
@@ -27,20 +45,37 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=None, help="parallel processes (default: min(2, runs))")
     p.add_argument("--tracker-module", action="append", default=[], metavar="MODULE",
                    help="import this module first, so that the trackers it registers can be named")
-    p.add_argument("--max-segments", type=int, default=None, help="only the first N segments of each sequence")
+    p.add_argument("--max-segments", type=int, default=None,
+                   help="only the first N (>= 1) segments of each sequence")
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
     p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
-    p.add_argument("--checkpoint", help="SCTN checkpoint for --tracker sctn (default: the shipped one)")
+    p.add_argument("--checkpoint", help="SCTN checkpoint for --tracker sctn (default: the shipped one); "
+                                        "an error without --tracker sctn")
     p.add_argument("--no-energy", action="store_true", help="skip the energy table when sctn runs")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
-                   help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05")
+                   help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05 "
+                        "(checked before the run)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+@dataclass
+class Plan:
+    """Everything a run needs, checked before any tracking starts."""
+
+    trackers: list[str]
+    files: list[Path]
+    sequences: dict[str, Path]
+    options: dict[str, dict]
+    out_dir: Path
+    jobs: int
+    model: object | None = None  # the SCTN model of the checkpoint, for the energy table
+    tasks: list[tuple[str, str]] = field(default_factory=list)
 
 
 def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None, options: dict | None = None):
     """Worker: run one tracker on one file (in a fresh process when parallel)."""
-    from benchmarks.protocol import run_sequence
+    from benchmarks.protocol import SequenceResult, one_line, run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
     from dvsot.dataset import Dataset
 
@@ -49,13 +84,12 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
     with Dataset(path) as ds:
         try:
             instance = get_tracker(tracker, **(options or {}))
-        except Exception as exc:  # construction failures fail this run only, like crashes
-            from benchmarks.protocol import SequenceResult
+        except Exception as exc:  # the options were built once up front, so this is a runtime failure
             import numpy as np
 
-            n = ds.num_segments
+            n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
             return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
-                                  error=f"{type(exc).__name__}: {exc}")
+                                  error=one_line(exc))
         return run_sequence(instance, ds, tracker, max_segments=max_segments)
 
 
@@ -90,8 +124,6 @@ def _name(path) -> str:
 
 def resolve_data(specs: list[str] | None, split: str) -> list:
     """The dataset files to benchmark; each must hold ground truth. Raises UserError otherwise."""
-    from pathlib import Path
-
     import numpy as np
 
     from dvsot.dataset import Dataset, find_datasets
@@ -110,80 +142,256 @@ def resolve_data(specs: list[str] | None, split: str) -> list:
     return files
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run every tracker on every sequence, print the table and write it in every format."""
-    import json
+def _sequences(files: list) -> dict[str, Path]:
+    """{sequence name: file}; two files with one name would share (and overwrite) a table column."""
+    from dvsot.errors import UserError
+
+    out: dict[str, Path] = {}
+    for f in files:
+        name = _name(f)
+        if name in out:
+            raise UserError(f"{f}: sequence '{name}' is also in {out[name]}; the tables need distinct names")
+        out[name] = Path(f)
+    return out
+
+
+def _error_text(exc: BaseException) -> str:
+    """One line for an exception from pydantic, torch or elsewhere (their messages span several lines)."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        err = exc.errors()[0]
+        loc = ".".join(str(p) for p in err["loc"])
+        msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
+        return f"field '{loc}': {msg}" if loc else msg
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    if len(lines) > 1 and lines[0].endswith(":"):
+        lines = lines[1:]  # torch: "Error(s) in loading state_dict for SCTN:" then the actual problem
+    return f"{type(exc).__name__}: {lines[0] if lines else repr(exc)}"
+
+
+def load_sctn_checkpoint(path: str | None):
+    """The SCTN model of a checkpoint, built with its state dict; any problem is a UserError naming the file."""
+    from dvsot.errors import UserError
+    from sctn.checkpoint import default_checkpoint_path, load_checkpoint
+
+    try:
+        return load_checkpoint(path)[0]
+    except UserError:
+        raise
+    except Exception as exc:  # a loadable file whose config or tensors do not fit the network
+        where = path if path is not None else default_checkpoint_path()
+        detail = _error_text(exc)
+        if detail.startswith("field "):
+            detail = "config " + detail  # NetworkConfig rejected the checkpoint's config
+        raise UserError(f"{where}: not a usable SCTN checkpoint ({detail})") from None
+
+
+def _option_spec(tracker: str, key: str | None, specs: list[str]) -> str:
+    """The --option text that set tracker.key (the last one, as it wins), or all of the tracker's."""
+    mine = [s for s in specs if s.startswith(f"{tracker}.")]
+    if key is not None:
+        hits = [s for s in mine if s.partition(".")[2].partition("=")[0] == key]
+        if hits:
+            return hits[-1]
+    return " ".join(mine)
+
+
+def _option_key(exc: BaseException, options: dict) -> str | None:
+    """The option a constructor rejected: pydantic's field, or Python's 'unexpected keyword argument'."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError) and exc.errors()[0]["loc"]:
+        return str(exc.errors()[0]["loc"][0])
+    m = re.search(r"unexpected keyword argument '(\w+)'", str(exc))
+    if m:
+        return m.group(1)
+    return next(iter(options)) if len(options) == 1 else None
+
+
+def _build_in_main(name: str, options: dict) -> None:
+    """Build a tracker and drop it, keeping torch's thread count (sctn's constructor sets 1, for the workers)."""
+    from benchmarks.trackers import get_tracker
+
+    torch = __import__("torch") if name == "sctn" else sys.modules.get("torch")
+    threads = torch.get_num_threads() if torch is not None else None
+    try:
+        get_tracker(name, **options)
+    finally:
+        if threads is not None:
+            torch.set_num_threads(threads)
+
+
+def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
+    """The one-line UserError for a tracker that its --option values did not build."""
+    from dvsot.errors import UserError
+
+    detail = _error_text(exc)
+    if not options or (name == "sctn" and set(options) == {"checkpoint"}):
+        return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
+    key = _option_key(exc, options)
+    if key is not None:
+        detail = detail.removeprefix(f"field '{key}': ")
+        if detail == "unknown field" or "unexpected keyword argument" in detail:
+            detail = f"tracker '{name}' has no option '{key}'"
+        elif "takes no arguments" in detail:
+            detail = f"tracker '{name}' takes no options"
+    return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
+
+
+def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
+    """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
+    from dvsot.errors import UserError
+
+    for name in trackers:
+        try:
+            _build_in_main(name, options.get(name, {}))
+        except UserError:
+            raise
+        except Exception as exc:
+            raise _option_error(name, options.get(name, {}), exc, specs) from None
+
+
+def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
+    """{file name in --out: the flag that asks for it}."""
+    from benchmarks.tables import TABLE_FILES
+
+    names = {n: "--out" for n in TABLE_FILES.values()}
+    if args.plots:
+        names["iou_over_time.png"] = "--plots"
+    for seq in args.video:
+        names[f"{seq}.gif"] = "--video"
+    if sctn and not args.no_energy:
+        names["energy.json"] = names["firing_rate.png"] = "--out (energy table)"
+    return names
+
+
+def check_outputs(out_dir: Path, names: dict[str, str], inputs: list) -> None:
+    """--out is a directory (or will be made) and none of the files to write in it is a directory or an input."""
+    from dvsot.outputs import output_dir, output_file
+
+    output_dir(out_dir, "--out")
+    if out_dir.is_dir():
+        for name, flag in names.items():
+            output_file(out_dir / name, flag, inputs)
+
+
+def plan(args: argparse.Namespace) -> Plan:
+    """Check every input and output of the run; UserError (and nothing done) on the first problem."""
     import os
     import time
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from multiprocessing import get_context
-    from pathlib import Path
 
-    from tqdm import tqdm
-
-    from benchmarks.tables import summarise, terminal, write_tables
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
 
+    if args.jobs is not None and args.jobs < 1:
+        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.max_segments is not None and args.max_segments < 1:
+        raise UserError(f"--max-segments must be >= 1, got {args.max_segments}")
     for m in args.tracker_module:
         load_tracker_module(m)
     trackers = list(dict.fromkeys(args.tracker))
     for name in trackers:
         tracker_class(name)
-    files = resolve_data(args.data, args.split)
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
-    tasks = [(t, str(f)) for t in trackers for f in files]
     options = _options(args.option, trackers)
-    if args.checkpoint:
+    sctn = "sctn" in trackers
+    if args.checkpoint is not None:
+        if not sctn:
+            raise UserError(f"--checkpoint {args.checkpoint}: only used by --tracker sctn, which is not in this run")
+        if "checkpoint" in options.get("sctn", {}):
+            raise UserError("--option sctn.checkpoint: give the checkpoint once, with --checkpoint")
         options.setdefault("sctn", {})["checkpoint"] = args.checkpoint
-    jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
-    results: list = [None] * len(tasks)
-    bar = tqdm(total=len(tasks), unit="run", desc="bench", disable=args.quiet)
-    if jobs == 1:
-        for k, (t, f) in enumerate(tasks):
+    files = resolve_data(args.data, args.split)
+    sequences = _sequences(files)
+    for seq in args.video:
+        if seq not in sequences:
+            raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
+    check_outputs(out_dir, _output_names(args, sctn), files)
+    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
+    check_trackers(trackers, options, args.option)
+    tasks = [(t, str(f)) for t in trackers for f in files]
+    jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
+    return Plan(trackers, files, sequences, options, out_dir, jobs, model, tasks)
+
+
+def track(p: Plan, args: argparse.Namespace) -> list:
+    """Run every task of the plan (in parallel processes when jobs > 1); results in task order."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from multiprocessing import get_context
+
+    from tqdm import tqdm
+
+    results: list = [None] * len(p.tasks)
+    bar = tqdm(total=len(p.tasks), unit="run", desc="bench", disable=args.quiet)
+    if p.jobs == 1:
+        for k, (t, f) in enumerate(p.tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, options.get(t))
+            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t))
             bar.update(1)
     else:
         # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well)
-        with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, options.get(t)): k
-                       for k, (t, f) in enumerate(tasks)}
-            for fut in as_completed(futures):
-                results[futures[fut]] = fut.result()
-                bar.update(1)
+        with ProcessPoolExecutor(p.jobs, mp_context=get_context("spawn")) as pool:
+            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, p.options.get(t)): k
+                       for k, (t, f) in enumerate(p.tasks)}
+            try:
+                for fut in as_completed(futures):
+                    results[futures[fut]] = fut.result()
+                    bar.update(1)
+            except BaseException:
+                pool.shutdown(cancel_futures=True)  # nothing will be written: do not wait for the rest
+                raise
     bar.close()
-    summary = summarise(results)
-    print(terminal(summary))
-    for r in results:
-        if r.error:
-            print(f"failed: {r.tracker} on {r.sequence}: {r.error}")
-    paths = write_tables(summary, out_dir)
+    return results
+
+
+def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
+    """Write the tables, pictures, videos and energy table into --out, each file atomically; paths by kind."""
+    import json
+
+    from benchmarks.tables import write_tables, write_text_atomic
+
+    paths = write_tables(summary, p.out_dir)
     if args.plots:
         from benchmarks.pictures import plot_iou_over_time
 
-        per = {}
+        per: dict = {}
         for r in results:
             per.setdefault(r.tracker, {})[r.sequence] = r.iou
-        paths["png"] = plot_iou_over_time(per, out_dir / "iou_over_time.png")
+        paths["png"] = plot_iou_over_time(per, p.out_dir / "iou_over_time.png")
     for seq in args.video:
         from dvsot.preview import write_preview
 
-        chosen = [r for r in results if r.sequence == seq]
-        if not chosen:
-            raise UserError(f"--video {seq}: no such sequence in this run")
-        path = next(f for f in files if _name(f) == seq)
-        paths[f"gif:{seq}"] = write_preview(path, out_dir / f"{seq}.gif", {r.tracker: r.predictions for r in chosen})
-    if "sctn" in trackers and not args.no_energy:
-        from benchmarks.energy_table import energy_table, format_energy_table, plot_firing_rates
-        from sctn.checkpoint import load_checkpoint
+        chosen = {r.tracker: r.predictions for r in results if r.sequence == seq}
+        paths[f"gif:{seq}"] = write_preview(p.sequences[seq], p.out_dir / f"{seq}.gif", chosen)
+    if energy is not None:
+        from benchmarks.energy_table import plot_firing_rates
 
-        table = energy_table(load_checkpoint(args.checkpoint)[0], files)
-        print(format_energy_table(table))
-        (out_dir / "energy.json").write_text(json.dumps(table, indent=2))
-        paths["energy"] = out_dir / "energy.json"
-        paths["firing"] = plot_firing_rates(table["firing"], out_dir / "firing_rate.png")
-    print("written: " + ", ".join(str(p) for p in paths.values()))
-    return 0
+        paths["energy"] = write_text_atomic(p.out_dir / "energy.json", json.dumps(energy, indent=2))
+        paths["firing"] = plot_firing_rates(energy["firing"], p.out_dir / "firing_rate.png")
+    return paths
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check everything, run every tracker on every sequence, then print and write the tables (exit 1 on failures)."""
+    from benchmarks.tables import summarise, terminal
+
+    p = plan(args)
+    results = track(p, args)
+    summary = summarise(results)
+    energy = None
+    if p.model is not None and not args.no_energy:
+        from benchmarks.energy_table import energy_table
+
+        energy = energy_table(p.model, p.files)  # computed before writing: a crash here leaves --out as it was
+    print(terminal(summary))
+    if energy is not None:
+        from benchmarks.energy_table import format_energy_table
+
+        print(format_energy_table(energy))
+    paths = write_outputs(p, args, summary, results, energy)
+    print("written: " + ", ".join(str(x) for x in paths.values()))
+    failed = [r for r in results if r.error]
+    for r in failed:
+        print(f"dvsot bench: failed: {r.tracker} on {r.sequence}: {r.error}", file=sys.stderr)
+    return 1 if failed else 0
