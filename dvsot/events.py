@@ -79,7 +79,8 @@ class EventBatch:
 class EventParams(BaseModel):
     """Event-generator parameters: contrast thresholds (log intensity), mismatch, refractory period (us), noise (Hz)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: an infinite threshold or rate passes gt/ge bounds yet silently means "no events"
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     cp: float = Field(0.2, gt=0, description="ON contrast threshold C+ (log intensity)")
     cn: float = Field(0.2, gt=0, description="OFF contrast threshold C- (log intensity)")

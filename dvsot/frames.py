@@ -8,10 +8,15 @@ Frames are produced lazily, one at a time.
 
 from __future__ import annotations
 
+import math
 import os
 
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")  # must be set before cv2 is imported
+# AV_LOG_QUIET: ffmpeg's own notes on a bad video ("moov atom not found") would precede our one-line error.
+# OpenCV reads this once, when it first opens a video, so it cannot be scoped like the log level below.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -23,7 +28,25 @@ from dvsot.errors import UserError
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
+MAX_SECONDS = 1e9  # keeps timestamps in microseconds well inside int64
 _LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)  # Rec. 709, in OpenCV's B, G, R order
+
+
+@contextmanager
+def _quiet_opencv() -> Iterator[None]:
+    """OpenCV logs errors only inside: its decoder warnings would precede our one-line error."""
+    level = cv2.getLogLevel()
+    cv2.setLogLevel(2)  # LOG_LEVEL_ERROR
+    try:
+        yield
+    finally:
+        cv2.setLogLevel(level)
+
+
+def _imread(path: Path) -> np.ndarray | None:
+    """cv2.imread without OpenCV's warnings; None if the file cannot be decoded."""
+    with _quiet_opencv():
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
 
 
 def srgb_to_linear(v: np.ndarray) -> np.ndarray:
@@ -72,7 +95,7 @@ class FrameSource:
 
     def _images(self) -> Iterator[np.ndarray]:
         for p in _image_files(self.path):
-            img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            img = _imread(p)
             if img is None:
                 raise UserError(f"{p}: cannot read image")
             frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
@@ -105,7 +128,7 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
         files = _image_files(p)
         if not files:
             raise UserError(f"{p}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in this directory")
-        first = cv2.imread(str(files[0]), cv2.IMREAD_UNCHANGED)
+        first = _imread(files[0])
         if first is None:
             raise UserError(f"{files[0]}: cannot read image")
         h, w = first.shape[:2]
@@ -117,9 +140,12 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
             raise UserError(f"{p}: not a readable .npy file ({exc})") from None
         if stack.ndim != 3 or stack.dtype.kind not in "fiu":
             raise UserError(f"{p}: expected a (T, H, W) array of real numbers, got {stack.dtype} {stack.shape}")
+        if stack.shape[1] == 0 or stack.shape[2] == 0:
+            raise UserError(f"{p}: frames are {stack.shape[2]}x{stack.shape[1]} pixels (shape {stack.shape})")
         return FrameSource(p, int(stack.shape[0]), int(stack.shape[2]), int(stack.shape[1]), None, srgb)
     if p.suffix.lower() in VIDEO_SUFFIXES:
-        cap = cv2.VideoCapture(str(p))
+        with _quiet_opencv():
+            cap = cv2.VideoCapture(str(p))
         try:
             if not cap.isOpened():
                 raise UserError(f"{p}: cannot open video")
@@ -128,7 +154,7 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
             fps = float(cap.get(cv2.CAP_PROP_FPS)) or None
         finally:
             cap.release()
-        if count <= 0 or w <= 0:
+        if count <= 0 or w <= 0 or h <= 0:
             raise UserError(f"{p}: video has no frames")
         return FrameSource(p, count, w, h, fps, srgb)
     raise UserError(f"{p}: not an image directory, a video ({', '.join(sorted(VIDEO_SUFFIXES))}) or a .npy stack")
@@ -139,16 +165,20 @@ def read_timestamps(path: str | os.PathLike, count: int) -> np.ndarray:
     p = Path(path)
     try:
         lines = [ln.split("#")[0].strip() for ln in p.read_text().splitlines()]
-    except OSError as exc:
-        raise UserError(f"{p}: cannot read timestamps ({exc.strerror})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
+        raise UserError(f"{p}: cannot read timestamps ({reason})") from None
     values = []
     for no, ln in enumerate(lines, start=1):
         if not ln:
             continue
         try:
-            values.append(float(ln.split()[0]))
+            v = float(ln.split()[0])
         except ValueError:
             raise UserError(f"{p}:{no}: not a number of seconds: {ln!r}") from None
+        if not (math.isfinite(v) and abs(v) < MAX_SECONDS):
+            raise UserError(f"{p}:{no}: not a finite number of seconds below {MAX_SECONDS:g}: {ln!r}")
+        values.append(v)
     t = np.rint(np.array(values, np.float64) * 1e6).astype(np.int64)
     if len(t) != count:
         raise UserError(f"{p}: {len(t)} timestamps for {count} frames")

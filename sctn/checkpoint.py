@@ -19,20 +19,40 @@ def default_checkpoint_path() -> Path:
     return CHECKPOINT_DIR / "sctn_dvsot21.pt"
 
 
+def metadata_path(path: str | os.PathLike) -> Path:
+    """Where save_checkpoint writes a checkpoint's metadata: next to it, as .json."""
+    return Path(path).with_suffix(".json")
+
+
+def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", inputs=()) -> Path:
+    """`path` as a checkpoint to (re)write, with its .json beside it; UserError before any work if it cannot be."""
+    from dvsot.outputs import output_file
+
+    p = output_file(path, flag, inputs)
+    meta = metadata_path(p)
+    if meta == p:
+        raise UserError(f"{p}: {flag} must not end in .json: the checkpoint's metadata is written to {meta.name}")
+    output_file(meta, f"{flag} (its metadata file)", inputs)
+    return p
+
+
 def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
-    """Write weights, config and metadata atomically (temp file, then rename), plus a .json of the metadata."""
-    p = Path(path)
-    if not p.parent.is_dir():
-        raise UserError(f"{p}: output directory {p.parent} does not exist")
+    """Write weights, config and metadata atomically (temp files, then rename), plus a .json of the metadata."""
+    p = check_checkpoint_output(path)
+    meta_path = metadata_path(p)
     state = {k: v.detach().to(torch.float32).clone() for k, v in model.state_dict().items()}
     tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(), "state_dict": state,
-                "meta": meta}, tmp)
-    os.replace(tmp, p)
-    meta_path = p.with_suffix(".json")
-    tmp_json = meta_path.with_name(f".{meta_path.name}.tmp")
-    tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
-    os.replace(tmp_json, meta_path)
+    tmp_json = meta_path.with_name(f".{meta_path.name}.tmp-{os.getpid()}")
+    try:
+        torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(), "state_dict": state,
+                    "meta": meta}, tmp)
+        tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
+        # both are complete before either replaces anything, so a failed write leaves the old pair intact
+        os.replace(tmp, p)
+        os.replace(tmp_json, meta_path)
+    finally:
+        for t in (tmp, tmp_json):
+            t.unlink(missing_ok=True)
     return p
 
 

@@ -10,6 +10,7 @@ set of segments (every 10th segment of each file) is scored.
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 import time
@@ -44,6 +45,46 @@ class TrainConfig:
     max_minutes: float | None = None
     ops_penalty: float = 0.0  # loss weight per million synaptic operations (ACs) per sample; 0 = off
     network: NetworkConfig = field(default_factory=NetworkConfig)
+
+    def __post_init__(self) -> None:
+        problem = config_problem(self)
+        if problem:
+            raise TrainConfigError(*problem)
+
+
+class TrainConfigError(ValueError):
+    """A TrainConfig field out of range: `field` names it, `problem` says what is wrong with its value."""
+
+    def __init__(self, field_name: str, problem: str) -> None:
+        super().__init__(f"TrainConfig.{field_name} {problem}")
+        self.field, self.problem = field_name, problem
+
+
+def _finite(v: float) -> bool:
+    """v is a finite real number."""
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def config_problem(cfg: TrainConfig) -> tuple[str, str] | None:
+    """The first out-of-range field of cfg and what is wrong with it, or None; checked before any work."""
+    for name in ("epochs", "batch_segments", "val_every"):
+        if getattr(cfg, name) < 1:
+            return name, f"must be >= 1, got {getattr(cfg, name)}"
+    if cfg.segments_per_epoch is not None and cfg.segments_per_epoch < 1:
+        return "segments_per_epoch", f"must be >= 1, got {cfg.segments_per_epoch}"
+    if cfg.val_segments < 0:
+        return "val_segments", f"must be >= 0, got {cfg.val_segments}"
+    if not (_finite(cfg.lr) and cfg.lr > 0):  # else Adam's ValueError on a NaN rate looks like a data problem
+        return "lr", f"must be positive and finite, got {cfg.lr}"
+    if not 0 <= cfg.seed < 2**63 - 1:  # numpy seeds are non-negative, torch's fit in int64 (seed + 1 is used too)
+        return "seed", f"must be >= 0 (and below 2**63 - 1), got {cfg.seed}"
+    if cfg.max_minutes is not None and not (_finite(cfg.max_minutes) and cfg.max_minutes > 0):
+        return "max_minutes", f"must be positive and finite, got {cfg.max_minutes}"
+    for name in ("ops_penalty", "min_box_px"):
+        v = getattr(cfg, name)
+        if not (_finite(v) and v >= 0):
+            return name, f"must be >= 0 and finite, got {v}"
+    return None
 
 
 def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:

@@ -130,3 +130,28 @@ def test_bad_parameters_name_the_field():
         EventParams.parse({"cp": -0.1}, "scene.yaml")
     with pytest.raises(UserError, match="'colour'"):
         EventParams.parse({"colour": 1}, "scene.yaml")
+
+
+@pytest.mark.parametrize("field", ["cp", "cn", "sigma_cp", "sigma_cn", "min_threshold", "refractory_us", "log_eps",
+                                   "shot_noise_hz", "leak_hz"])
+@pytest.mark.parametrize("value", [float("inf"), float("-inf"), float("nan")])
+def test_non_finite_parameters_are_rejected(field, value):
+    with pytest.raises(UserError, match=f"'{field}': Input should be a finite number"):
+        EventParams.parse({field: value}, "scene.yaml")
+
+
+def test_scene_file_events_section_rejects_infinity(tmp_path):
+    from dvsot.config import parse_scene
+
+    scene = """name: t
+duration_s: 0.1
+camera:
+  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
+target:
+  shape: cube
+  trajectory:
+    keyframes: [{t: 0, location: [0, 0, 0]}]
+events: {cp: .inf}
+"""
+    with pytest.raises(UserError, match=r"s\.yaml:9: field 'events\.cp': Input should be a finite number"):
+        parse_scene(scene, "s.yaml", tmp_path)

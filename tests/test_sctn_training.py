@@ -143,3 +143,69 @@ def test_checkpoint_round_trip_and_train_cli_errors(trained, tmp_path, capsys):
     assert main(["train", "--data", str(train_file), "-o", str(out), "--ops-penalty", "-1", "--quiet"]) == 2
     assert "--ops-penalty must be >= 0" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("field, value", [("lr", float("nan")), ("lr", 0.0), ("max_minutes", -1.0),
+                                          ("max_minutes", float("inf")), ("ops_penalty", float("inf")),
+                                          ("seed", -1), ("epochs", 0), ("segments_per_epoch", 0),
+                                          ("batch_segments", 0), ("min_box_px", float("nan"))])
+def test_train_config_refuses_out_of_range_fields(field, value):
+    from sctn.train import TrainConfigError
+
+    with pytest.raises(TrainConfigError, match=field) as exc:
+        TrainConfig(**{field: value})
+    assert exc.value.field == field
+
+
+def tiny_model():
+    from sctn.network import SCTN, NetworkConfig
+
+    return SCTN(NetworkConfig(channels=(2, 2, 2), fc=(4, 4)))
+
+
+@pytest.mark.parametrize("fail_at", [0, 1])
+def test_failed_checkpoint_write_leaves_no_temp_file_and_the_old_pair_intact(tmp_path, monkeypatch, fail_at):
+    import sctn.checkpoint as ck
+
+    path = save_checkpoint(tmp_path / "m.pt", tiny_model(), {"note": "old"})
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    real_replace, calls = ck.os.replace, []
+
+    def replace(src, dst):
+        calls.append(dst)
+        if len(calls) > fail_at:
+            raise OSError(28, "No space left on device")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(ck.os, "replace", replace)
+    with pytest.raises(OSError):
+        save_checkpoint(path, tiny_model(), {"note": "new"})
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "m.pt"]  # no .tmp files
+    if fail_at == 0:
+        assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    assert load_checkpoint(path)[1]["note"] == ("old" if fail_at == 0 else "new")
+
+
+def test_failed_torch_save_leaves_no_temp_file(tmp_path, monkeypatch):
+    import sctn.checkpoint as ck
+
+    def torch_save(obj, f):
+        Path(f).write_bytes(b"half a checkpoint")
+        raise RuntimeError("disk went away")
+
+    monkeypatch.setattr(ck.torch, "save", torch_save)
+    with pytest.raises(RuntimeError):
+        save_checkpoint(tmp_path / "m.pt", tiny_model(), {})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_save_checkpoint_refuses_a_directory_or_a_json_name(tmp_path):
+    from dvsot.errors import UserError
+
+    (tmp_path / "adir").mkdir()
+    with pytest.raises(UserError, match="directory"):
+        save_checkpoint(tmp_path / "adir", tiny_model(), {})
+    with pytest.raises(UserError, match=r"\.json"):
+        save_checkpoint(tmp_path / "m.json", tiny_model(), {})
+    assert [p.name for p in tmp_path.iterdir()] == ["adir"] and not any((tmp_path / "adir").iterdir())

@@ -101,8 +101,8 @@ def bad_inputs(tmp_path):
         ([ok], "--fps"),
         ([ok, "--timestamps", str(tmp_path / "t.txt")], "must increase"),
         ([ok, "--timestamps", str(tmp_path / "short.txt")], "2 timestamps for 5 frames"),
-        ([ok, "--fps", "100", "--cp", "-0.1"], "'cp'"),
-        ([ok, "--fps", "100", "--refractory-us", "-1"], "'refractory_us'"),
+        ([ok, "--fps", "100", "--cp", "-0.1"], "--cp"),
+        ([ok, "--fps", "100", "--refractory-us", "-1"], "--refractory-us"),
     ]
 
 
@@ -135,3 +135,121 @@ def test_info_on_a_damaged_file_exits_2(tmp_path, capsys, content):
     assert main(["info", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.h5" in err[0]
+
+
+def snapshot(d) -> dict:
+    """Every file under d (names of dot files too) with its bytes, to show that a failed run changed nothing."""
+    return {str(p.relative_to(d)): (p.read_bytes() if p.is_file() else None) for p in sorted(d.rglob("*"))}
+
+
+def assert_refused(argv, words, tmp_path, capsys) -> str:
+    """`dvsot simulate argv` exits 2 with one line holding every one of words, and no file under tmp_path changes."""
+    before = snapshot(tmp_path)
+    assert main(["simulate", *argv, "--quiet"]) == 2, argv
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), (argv, err)
+    assert snapshot(tmp_path) == before, argv
+    return err[0]
+
+
+def test_output_that_is_a_directory_or_the_input_is_refused(tmp_path, capsys):
+    np.save(tmp_path / "ok.npy", stack(5))
+    (tmp_path / "adir").mkdir()
+    ok = str(tmp_path / "ok.npy")
+    assert_refused([ok, "--fps", "100", "-o", str(tmp_path / "adir")], ["adir", "-o", "directory"], tmp_path, capsys)
+    assert_refused([ok, "--fps", "100", "-o", ok], ["ok.npy", "-o", "input"], tmp_path, capsys)
+    (tmp_path / "t.txt").write_text("\n".join(str(i / 100) for i in range(5)))
+    assert_refused([ok, "--timestamps", str(tmp_path / "t.txt"), "-o", str(tmp_path / "t.txt")], ["t.txt", "input"],
+                   tmp_path, capsys)
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--seed=-1"], ["--seed", "-1"]),
+    (["--fps", "nan"], ["--fps", "finite", "nan"]),
+    (["--fps", "inf"], ["--fps", "finite", "inf"]),
+    (["--fps", "0"], ["--fps", "positive"]),
+    (["--fps", "1e7"], ["--fps"]),
+    (["--fps", "100", "--cp=inf"], ["--cp", "finite"]),
+    (["--fps", "100", "--cn", "nan"], ["--cn", "finite"]),
+    (["--fps", "100", "--sigma", "inf"], ["--sigma", "finite"]),
+    (["--fps", "100", "--refractory-us", "inf"], ["--refractory-us", "finite"]),
+    (["--fps", "100", "--log-eps", "inf"], ["--log-eps", "finite"]),
+    (["--fps", "100", "--shot-noise-hz", "inf"], ["--shot-noise-hz", "finite"]),
+    (["--fps", "100", "--leak-hz", "nan"], ["--leak-hz", "finite"]),
+    (["--fps", "100", "--cp", "-0.1"], ["--cp", "greater than 0"]),
+])
+def test_bad_numeric_flags_name_the_flag(tmp_path, capsys, flags, words):
+    np.save(tmp_path / "ok.npy", stack(5))
+    assert_refused([str(tmp_path / "ok.npy"), *flags, "-o", str(tmp_path / "x.h5")], words, tmp_path, capsys)
+
+
+@pytest.mark.parametrize("lines, words", [
+    (["0", "nan", "0.002", "0.003", "0.004"], ["ts.txt:2", "'nan'"]),
+    (["0", "0.001", "0.002", "0.003", "inf"], ["ts.txt:5", "'inf'"]),
+    (["0", "0.001", "-inf", "0.003", "0.004"], ["ts.txt:3", "'-inf'"]),
+    (["0", "0.001", "1e300", "0.003", "0.004"], ["ts.txt:3", "'1e300'"]),
+])
+def test_non_finite_timestamps_name_the_file_and_line(tmp_path, capsys, lines, words):
+    np.save(tmp_path / "ok.npy", stack(5))
+    (tmp_path / "ts.txt").write_text("\n".join(lines) + "\n")
+    assert_refused([str(tmp_path / "ok.npy"), "--timestamps", str(tmp_path / "ts.txt"), "-o", str(tmp_path / "x.h5")],
+                   words, tmp_path, capsys)
+
+
+@pytest.mark.parametrize("shape", [(10, 0, 0), (10, 0, 5), (10, 4, 0)])
+def test_npy_with_no_pixels_names_the_file(tmp_path, capsys, shape):
+    np.save(tmp_path / "zero.npy", np.zeros(shape, np.float32))
+    assert_refused([str(tmp_path / "zero.npy"), "--fps", "100", "-o", str(tmp_path / "x.h5")],
+                   ["zero.npy", f"{shape[2]}x{shape[1]}"], tmp_path, capsys)
+
+
+@pytest.mark.parametrize("rows, words", [
+    ("0,1,1,-5,5\n0.002,2,2,5,5\n", ["b.csv:2", "width and height must be positive", "w=-5"]),
+    ("0,1,1,5,5\n0.002,2,2,5,-5\n", ["b.csv:3", "positive", "h=-5"]),
+    ("0,1,1,5,5\n0.002,2,2,0,5\n", ["b.csv:3", "positive"]),
+    ("0,1,1,5,5\ninf,2,2,5,5\n", ["b.csv:3", "box time", "'inf'"]),
+    ("0,1,1,5,5\n0.002,nan,2,5,5\n", ["b.csv:3", "finite"]),
+    ("0,1,1,5,5\n0.002,2,2,5\n", ["b.csv:3", "expected 5 columns"]),
+    ("0.002,1,1,5,5\n0.001,2,2,5,5\n", ["b.csv:3", "must increase"]),
+])
+def test_bad_boxes_name_the_file_and_line(tmp_path, capsys, rows, words):
+    np.save(tmp_path / "ok.npy", stack(5))
+    (tmp_path / "b.csv").write_text("# t_s,x,y,w,h\n" + rows)
+    assert_refused([str(tmp_path / "ok.npy"), "--fps", "1000", "-o", str(tmp_path / "x.h5"),
+                    "--boxes", str(tmp_path / "b.csv")], words, tmp_path, capsys)
+
+
+def test_boxes_that_are_all_nan_mean_no_target(tmp_path, capsys):
+    np.save(tmp_path / "ok.npy", stack(5))
+    (tmp_path / "b.csv").write_text("0,1,1,5,5\n0.002,nan,nan,nan,nan\n")
+    assert main(["simulate", str(tmp_path / "ok.npy"), "--fps", "1000", "-o", str(tmp_path / "x.h5"), "--quiet",
+                 "--boxes", str(tmp_path / "b.csv")]) == 0
+    with Dataset(tmp_path / "x.h5") as ds:
+        assert np.isnan(ds.boxes().xywh[1]).all()
+
+
+def test_corrupt_png_frame_gives_only_our_line(tmp_path, capfd):
+    """OpenCV's own warning (written to fd 2, past capsys) must not precede the one-line error."""
+    for i, f in enumerate(stack(5)):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), np.round(f * 255).astype(np.uint8))
+    (tmp_path / "f3.png").write_bytes(b"\x89PNG\r\n\x1a\ngarbage")  # OpenCV warns "chunk data is too large"
+    out = tmp_path.parent / f"{tmp_path.name}.h5"
+    assert main(["simulate", str(tmp_path), "--fps", "100", "-o", str(out), "--quiet"]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "f3.png: cannot read image" in err[0], err
+    assert not out.exists()
+
+
+def test_garbage_video_gives_only_our_line(tmp_path):
+    """ffmpeg's note ("moov atom not found") must not precede the error; a fresh process, as ffmpeg's level is
+    fixed when OpenCV first opens a video."""
+    import subprocess
+    import sys
+
+    (tmp_path / "g.mp4").write_bytes(np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8).tobytes())
+    r = subprocess.run([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "g.mp4"), "--fps", "100",
+                        "-o", str(tmp_path / "x.h5"), "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stdout == ""
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and "g.mp4: cannot open video" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.mp4"]

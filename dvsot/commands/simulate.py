@@ -34,20 +34,94 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+# EventParams field -> the flag that sets it, so that a bad value is reported by its flag
+_PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
+                "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
+                "leak_hz": "--leak-hz"}
+MAX_FPS = 1e6  # timestamps are whole microseconds: a faster rate would give frames the same time
+
+
+def _event_params(args: argparse.Namespace):
+    """The simulator parameters from the flags; a bad value raises UserError naming its flag."""
+    from pydantic import ValidationError
+
+    from dvsot.errors import UserError
+    from dvsot.events import EventParams
+
+    values = dict(cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma, mismatch=args.mismatch,
+                  refractory_us=args.refractory_us, log_eps=args.log_eps, shot_noise_hz=args.shot_noise_hz,
+                  leak_hz=args.leak_hz)
+    try:
+        return EventParams(**values)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = str(err["loc"][0]) if err["loc"] else "?"
+        raise UserError(f"{_PARAM_FLAGS.get(field, field)} {values.get(field)}: {err['msg']}") from None
+
+
+def _check_flags(args: argparse.Namespace) -> None:
+    """Range checks of the numeric flags EventParams does not cover."""
+    import math
+
+    from dvsot.errors import UserError
+
+    if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
+        raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
+    if args.segment_us <= 0:
+        raise UserError(f"--segment-us must be positive, got {args.segment_us}")
+    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
+        raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
+
+
+def _box_row(path: str, no: int, line: str) -> list[float]:
+    """One CSV line t_s,x,y,w,h as numbers; times finite, w and h positive (or the whole box NaN: absent)."""
+    import math
+
+    from dvsot.errors import UserError
+    from dvsot.frames import MAX_SECONDS
+
+    cells = [c.strip() for c in line.split(",")]
+    if len(cells) != 5:
+        raise UserError(f"{path}:{no}: expected 5 columns t_s,x,y,w,h, found {len(cells)}")
+    try:
+        row = [float(c) for c in cells]
+    except ValueError:
+        raise UserError(f"{path}:{no}: not a number in {line!r} (columns t_s,x,y,w,h)") from None
+    t, x, y, w, h = row
+    if not (math.isfinite(t) and abs(t) < MAX_SECONDS):
+        raise UserError(f"{path}:{no}: box time must be a finite number of seconds below {MAX_SECONDS:g}, "
+                        f"got {cells[0]!r}")
+    if all(math.isnan(v) for v in (x, y, w, h)):
+        return row  # NaN box: the target is absent at this time
+    if not all(math.isfinite(v) for v in (x, y, w, h)):
+        raise UserError(f"{path}:{no}: x,y,w,h must be finite (or all nan for no target), got {line!r}")
+    if w <= 0 or h <= 0:
+        raise UserError(f"{path}:{no}: box width and height must be positive, got w={cells[3]} h={cells[4]}")
+    return row
+
+
 def _read_boxes(path: str, t_origin_us: int):
+    """Box times (us, relative to the first frame) and x,y,w,h rows from the --boxes CSV; checked line by line."""
+    from pathlib import Path
+
     import numpy as np
 
     from dvsot.errors import UserError
 
     try:
-        rows = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
-    except (OSError, ValueError) as exc:
-        raise UserError(f"{path}: cannot read boxes as CSV t_s,x,y,w,h ({' '.join(str(exc).split())})") from None
-    if rows.shape[1] != 5:
-        raise UserError(f"{path}: expected 5 columns t_s,x,y,w,h, found {rows.shape[1]}")
+        text = Path(path).read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
+        raise UserError(f"{path}: cannot read boxes as CSV t_s,x,y,w,h ({reason})") from None
+    numbered = [(no, ln.split("#")[0].strip()) for no, ln in enumerate(text.splitlines(), start=1)]
+    numbered = [(no, ln) for no, ln in numbered if ln]
+    if not numbered:
+        raise UserError(f"{path}: no boxes (expected lines t_s,x,y,w,h)")
+    rows = np.array([_box_row(path, no, ln) for no, ln in numbered], np.float64)
     t = np.rint(rows[:, 0] * 1e6).astype(np.int64) - t_origin_us
-    if np.any(np.diff(t) <= 0):
-        raise UserError(f"{path}: box times must increase")
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        raise UserError(f"{path}:{numbered[bad[0] + 1][0]}: box times must increase")
     return t, rows[:, 1:5]
 
 
@@ -63,21 +137,19 @@ def run(args: argparse.Namespace) -> int:
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.errors import UserError
-    from dvsot.events import EventParams, EventSimulator
+    from dvsot.events import EventSimulator
     from dvsot.frames import open_frames, read_timestamps
+    from dvsot.outputs import output_file
 
-    params = EventParams.parse(dict(cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
-                                    mismatch=args.mismatch, refractory_us=args.refractory_us,
-                                    log_eps=args.log_eps, shot_noise_hz=args.shot_noise_hz,
-                                    leak_hz=args.leak_hz), "command line")
-    if args.segment_us <= 0:
-        raise UserError(f"command line: --segment-us must be positive, got {args.segment_us}")
+    params = _event_params(args)
+    _check_flags(args)
+    output_file(args.output, "-o", inputs=[p for p in (args.input, args.timestamps, args.boxes) if p])
     source = open_frames(args.input, srgb=args.srgb)
     if args.timestamps:
         t_us = read_timestamps(args.timestamps, source.count)
     else:
-        fps = args.fps or source.fps
-        if not fps or fps <= 0:
+        fps = args.fps if args.fps is not None else source.fps
+        if not fps or not 0 < fps <= MAX_FPS:  # a video's own rate: None, or whatever its header says
             raise UserError(f"{args.input}: give --fps N (positive) or --timestamps FILE")
         t_us = np.rint(np.arange(source.count) * 1e6 / fps).astype(np.int64)
     if source.count < 2:

@@ -32,26 +32,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Train, then save the checkpoint (atomically) with its provenance."""
-    import json
-    from pathlib import Path
-
-    import torch
-
-    from dvsot.dataset import find_datasets
+def _network_config(args: argparse.Namespace):
+    """The network's layer sizes from --channels / --fc (NetworkConfig's defaults otherwise)."""
     from dvsot.errors import UserError
-    from sctn.checkpoint import save_checkpoint
     from sctn.network import NetworkConfig
-    from sctn.train import TrainConfig, provenance, train
 
-    for name in ("epochs", "segments_per_epoch", "batch_segments"):
-        if getattr(args, name) < 1:
-            raise UserError(f"--{name.replace('_', '-')} must be >= 1")
-    if args.lr <= 0:
-        raise UserError("--lr must be positive")
-    if not args.ops_penalty >= 0:
-        raise UserError(f"--ops-penalty must be >= 0, got {args.ops_penalty}")
     net = {}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
@@ -59,15 +44,41 @@ def run(args: argparse.Namespace) -> int:
             if min(sizes) < 1:
                 raise UserError(f"--{name} sizes must be >= 1, got {' '.join(map(str, sizes))}")
             net[name] = tuple(sizes)
-    out = Path(args.output)
-    if not out.parent.is_dir():
-        raise UserError(f"{out}: output directory {out.parent} does not exist")
+    return NetworkConfig(**net)
+
+
+def _train_config(args: argparse.Namespace):
+    """The training settings from the flags; an out-of-range value raises UserError naming its flag."""
+    from dvsot.errors import UserError
+    from sctn.train import TrainConfig, TrainConfigError
+
+    try:
+        return TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
+                           batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
+                           max_minutes=args.max_minutes, ops_penalty=args.ops_penalty,
+                           network=_network_config(args))
+    except TrainConfigError as exc:  # every field set here is the flag of the same name
+        raise UserError(f"--{exc.field.replace('_', '-')} {exc.problem}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Train, then save the checkpoint (atomically) with its provenance."""
+    import json
+
+    import torch
+
+    from dvsot.dataset import find_datasets
+    from dvsot.errors import UserError
+    from sctn.checkpoint import check_checkpoint_output, save_checkpoint
+    from sctn.train import provenance, train
+
+    cfg = _train_config(args)
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
     files = find_datasets(args.data, split=None if args.split == "any" else args.split)
+    out = check_checkpoint_output(args.output, "-o", inputs=files)
     if args.threads:
         torch.set_num_threads(args.threads)
-    cfg = TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
-                      batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
-                      max_minutes=args.max_minutes, ops_penalty=args.ops_penalty, network=NetworkConfig(**net))
     try:
         model, history = train(files, cfg, progress=not args.quiet)
     except ValueError as exc:
