@@ -27,6 +27,7 @@ from benchmarks.metrics import FAILURE_IOU
 from benchmarks.trackers.base import Tracker
 from dvsot.boxes import iou_xywh
 from dvsot.dataset import Dataset
+from dvsot.errors import UserError
 
 MIN_BOX_PX = 1.0
 
@@ -96,6 +97,8 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
                 energies.append(energy)
             if ious[i] < FAILURE_IOU:
                 need_init = True
+    except UserError:  # a damaged data file is bad input, not a tracker failure
+        raise
     except Exception as exc:  # a crashing tracker fails this sequence only
         last = traceback.extract_tb(exc.__traceback__)[-1]
         return SequenceResult(name, dataset.name, np.full(n, np.nan), preds, inits, spent, tracked,

@@ -16,7 +16,13 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md and DESIGN.md):
 
 The writer appends events in chunks and computes `ms_to_idx` as it goes, so a sequence of hundreds
 of millions of events never sits in memory. It writes to a temporary name beside the target and
-renames on success, so an interrupted run leaves no file that looks complete.
+renames on success, so an interrupted run leaves no file that looks complete. Every dataset carries
+HDF5's Fletcher-32 checksum, so flipped bits in a chunk fail the read instead of returning garbage.
+
+The reader checks the layout and attributes when it opens a file, and the invariants of every batch
+of events it loads (time order, time window, pixel range, 0/1 flags) on the data already in memory;
+`Dataset.chunks` streams and checks the whole file. Any violation is a one-line UserError naming the
+file and the dataset or attribute. Files written before checksums were added still load.
 """
 
 from __future__ import annotations
@@ -95,7 +101,8 @@ class DatasetWriter:
     """Streams events and boxes into a new dataset file; renames it into place only on success."""
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
-                 attrs: dict[str, Any] | None = None, compression: str | None = "lzf") -> None:
+                 attrs: dict[str, Any] | None = None, compression: str | None = "lzf",
+                 checksum: bool = True) -> None:
         if width <= 0 or height <= 0:
             raise ValueError(f"width and height must be positive, got {width}x{height}")
         if segment_us <= 0:
@@ -107,11 +114,12 @@ class DatasetWriter:
         self.tmp_path = self.path.with_name(f".{self.path.name}.tmp-{os.getpid()}")
         self._file = h5py.File(self.tmp_path, "w")
         self._compression = compression
+        self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
         ev = self._file.create_group("events")
         for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
             ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
-                              compression=compression)
+                              compression=compression, fletcher32=self._checksum)
         self._has_signal: bool | None = None
         self._buffer: list[EventBatch] = []
         self._buffered = 0
@@ -156,7 +164,8 @@ class DatasetWriter:
             self._has_signal = batch.signal is not None
             if self._has_signal:
                 self._file["events"].create_dataset("signal", shape=(0,), maxshape=(None,), dtype=np.uint8,
-                                                    chunks=(_EVENT_CHUNK,), compression=self._compression)
+                                                    chunks=(_EVENT_CHUNK,), compression=self._compression,
+                                                    fletcher32=self._checksum)
         elif self._has_signal != (batch.signal is not None):
             raise ValueError("either every event batch carries signal flags or none does")
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
@@ -220,11 +229,12 @@ class DatasetWriter:
             tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
             ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
             f = self._file
-            f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64))
+            ck = {"fletcher32": True} if self._checksum else {}
+            f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
             g = f.create_group("boxes")
-            g.create_dataset("t", data=box_t, maxshape=(None,))
-            g.create_dataset("xywh", data=box_xywh, maxshape=(None, 4))
-            g.create_dataset("xywh_visible", data=box_vis, maxshape=(None, 4))
+            g.create_dataset("t", data=box_t, maxshape=(None,), **ck)
+            g.create_dataset("xywh", data=box_xywh, maxshape=(None, 4), **ck)
+            g.create_dataset("xywh_visible", data=box_vis, maxshape=(None, 4), **ck)
             n_seg = duration_us // self.segment_us
             seg_t = (np.arange(n_seg, dtype=np.int64) + 1) * self.segment_us
             if len(box_t):
@@ -234,9 +244,9 @@ class DatasetWriter:
                 seg_box = np.full((n_seg, 4), np.nan, np.float32)
                 seg_vis = seg_box.copy()
             s = f.create_group("segments")
-            s.create_dataset("t", data=seg_t)
-            s.create_dataset("xywh", data=seg_box.reshape(-1, 4))
-            s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4))
+            s.create_dataset("t", data=seg_t, **ck)
+            s.create_dataset("xywh", data=seg_box.reshape(-1, 4), **ck)
+            s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
             attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
@@ -261,6 +271,118 @@ class DatasetWriter:
         self.tmp_path.unlink(missing_ok=True)
 
 
+# Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).
+_LAYOUT: dict[str, tuple[str, int]] = {
+    "events/x": ("ui", 1), "events/y": ("ui", 1), "events/t": ("ui", 1), "events/p": ("uib", 1),
+    "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1),
+    "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
+    "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
+}
+_MAX_PIXELS = 1 << 16  # x and y are stored as u2
+_KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"}
+# Datasets that must have as many rows as the first one of their group.
+_SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal"),
+              ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
+              ("segments/xywh", "segments/t", "segments/xywh_visible"))
+
+
+class _Damaged(Exception):
+    """A broken invariant of the file format; Dataset turns it into a UserError naming the file."""
+
+
+def _check_layout(f: h5py.File) -> None:
+    """Raise _Damaged unless the required datasets exist and every known one has the right type, dtype, shape, rows."""
+    missing = [name for name in _REQUIRED if name not in f]
+    if missing:
+        raise _Damaged(f"missing /{missing[0]}")
+    for name, (kinds, rank) in _LAYOUT.items():
+        if name not in f:
+            continue
+        try:
+            obj = f[name]
+        except (KeyError, OSError) as exc:  # e.g. a dangling link: listed, but nothing behind it
+            raise _Damaged(f"/{name} cannot be opened ({_short(exc)})") from None
+        if not isinstance(obj, h5py.Dataset):
+            raise _Damaged(f"/{name} is a {type(obj).__name__.lower()}, not a dataset")
+        if obj.dtype.kind not in kinds:
+            raise _Damaged(f"/{name} has dtype {obj.dtype}, expected {_KIND_WORDS[kinds]}")
+        if obj.ndim != rank or (rank == 2 and obj.shape[1] != 4):
+            raise _Damaged(f"/{name} has shape {obj.shape}, expected {'(N,)' if rank == 1 else '(N, 4)'}")
+    for group in _SAME_ROWS:
+        rows = {name: f[name].shape[0] for name in group if name in f}
+        first = group[0]
+        for name, n in rows.items():
+            if n != rows[first]:
+                raise _Damaged(f"/{name} has {n} rows, /{first} has {rows[first]}")
+
+
+def _int_attr(attrs: dict[str, Any], name: str, minimum: int, maximum: int | None = None) -> int:
+    """Root attribute `name` as an int in [minimum, maximum]; raise _Damaged naming it when it is not."""
+    if name not in attrs:
+        raise _Damaged(f"root attribute '{name}' is missing")
+    value = attrs[name]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not float(value).is_integer():
+        raise _Damaged(f"root attribute '{name}' is {repr(value)[:40]}, expected an integer")
+    if value < minimum:
+        raise _Damaged(f"root attribute '{name}' is {int(value)}, expected >= {minimum}")
+    if maximum is not None and value > maximum:
+        raise _Damaged(f"root attribute '{name}' is {int(value)}, expected <= {maximum}")
+    return int(value)
+
+
+def _check_duration(duration_us: int, segment_us: int, n_ms_to_idx: int, n_segments: int) -> None:
+    """Raise _Damaged unless /events/ms_to_idx and /segments/xywh are as long as duration_us (microseconds) implies."""
+    want_ms, want_seg = -(-duration_us // 1000) + 1, duration_us // segment_us
+    ms_ok, seg_ok = n_ms_to_idx == want_ms, n_segments == want_seg
+    if not ms_ok and not seg_ok:  # two tables written independently agree with each other, not with the attribute
+        raise _Damaged(f"root attribute 'duration_us' is {duration_us}, which disagrees with /events/ms_to_idx "
+                       f"({n_ms_to_idx} entries, expected {want_ms}) and /segments/xywh ({n_segments} rows, "
+                       f"expected {want_seg})")
+    if not ms_ok:
+        raise _Damaged(f"/events/ms_to_idx has {n_ms_to_idx} entries, expected {want_ms} for duration_us {duration_us}")
+    if not seg_ok:
+        raise _Damaged(f"/segments/xywh has {n_segments} rows, expected {want_seg} "
+                       f"(duration_us {duration_us} / segment_us {segment_us})")
+
+
+def _ms_to_idx_problem(ms_to_idx: np.ndarray, num_events: int) -> str | None:
+    """What is wrong with a whole ms_to_idx table (event indices per millisecond), or None."""
+    if len(ms_to_idx) and (int(ms_to_idx[0]) != 0 or int(ms_to_idx[-1]) != num_events):
+        return (f"/events/ms_to_idx runs from {int(ms_to_idx[0])} to {int(ms_to_idx[-1])}, "
+                f"expected 0 to num_events {num_events}")
+    down = np.flatnonzero(ms_to_idx[1:] < ms_to_idx[:-1])  # compared, not diffed: u8 differences wrap around
+    if len(down):
+        return f"/events/ms_to_idx decreases at ms {int(down[0]) + 1}"
+    return None
+
+
+def _times_problem(t: np.ndarray, t0_us: int, t1_us: int, first: int, source: str) -> str | None:
+    """What is wrong with sorted timestamps (microseconds) of events first.. meant to lie in [t0_us, t1_us), or None."""
+    # `source` names what set the window: a time outside it may be bad data or a bad index, so both are named
+    if len(t) == 0:
+        return None
+    if np.any(t[1:] < t[:-1]):
+        i = int(np.flatnonzero(t[1:] < t[:-1])[0])
+        return f"/events/t is not in time order at event {first + i + 1} ({int(t[i])} us, then {int(t[i + 1])} us)"
+    if t[0] < t0_us or t[-1] >= t1_us:  # sorted, so the ends bound every value
+        i = 0 if t[0] < t0_us else len(t) - 1
+        return f"/events/t holds {int(t[i])} us at event {first + i}, outside [{t0_us}, {t1_us}) us given by {source}"
+    return None
+
+
+def _columns_problem(columns: dict[str, np.ndarray], limits: dict[str, tuple[int, str]], first: int) -> str | None:
+    """What is wrong with event columns whose values must lie in [0, limit) (limits: name -> (limit, why)), or None."""
+    for name, values in columns.items():
+        limit, why = limits[name]
+        if len(values) == 0 or values.dtype.kind == "b":
+            continue
+        # unsigned columns (the written dtype) cannot be negative: skip the extra pass over them
+        if values.max() >= limit or (values.dtype.kind == "i" and values.min() < 0):
+            i = int(np.flatnonzero((values < 0) | (values >= limit))[0])
+            return f"/events/{name} holds {int(values[i])} at event {first + i}, {why}"
+    return None
+
+
 class Dataset:
     """A dataset file opened lazily: events by time, fixed-length segments with ground truth, boxes, metadata."""
 
@@ -277,6 +399,9 @@ class Dataset:
         except UserError:
             self._file.close()
             raise
+        except _Damaged as exc:
+            self._file.close()
+            raise UserError(f"{self.path}: damaged dvsot file ({exc})") from None
         except (OSError, KeyError, ValueError, TypeError) as exc:
             self._file.close()
             raise UserError(f"{self.path}: damaged dvsot file ({_short(exc)})") from None
@@ -288,35 +413,42 @@ class Dataset:
         version = int(f.attrs.get("format_version", -1))
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
-        missing = [name for name in _REQUIRED if name not in f]
-        if missing:
-            raise UserError(f"{self.path}: damaged dvsot file (missing /{missing[0]})")
+        _check_layout(f)
         self.attrs: dict[str, Any] = {k: _decode_attr(v) for k, v in f.attrs.items()}
-        self.width = int(self.attrs["width"])
-        self.height = int(self.attrs["height"])
-        self.segment_us = int(self.attrs["segment_us"])
-        self.duration_us = int(self.attrs["duration_us"])
+        self.width = _int_attr(self.attrs, "width", 1, _MAX_PIXELS)
+        self.height = _int_attr(self.attrs, "height", 1, _MAX_PIXELS)
+        self.segment_us = _int_attr(self.attrs, "segment_us", 1)
+        self.duration_us = _int_attr(self.attrs, "duration_us", 0)
         self.format_version = version
         self.name = str(self.attrs.get("name") or self.path.stem)
         self.split = str(self.attrs.get("split") or "")
         ev = f["events"]
+        self._has_signal = "signal" in ev
+        # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
+        # would decompress a whole 2 MB chunk for every query (10x slower segment reads)
+        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
         self.num_events = int(ev["t"].shape[0])
-        lengths = {ev[k].shape[0] for k in ("x", "y", "t", "p")}
-        if "signal" in ev:
-            lengths.add(ev["signal"].shape[0])
-        if len(lengths) != 1 or self.num_events != int(self.attrs.get("num_events", self.num_events)):
-            raise UserError(f"{self.path}: damaged dvsot file (event columns differ in length)")
-        self._ms_to_idx = ev["ms_to_idx"][()]
-        if len(self._ms_to_idx) != -(-self.duration_us // 1000) + 1 or (
-                len(self._ms_to_idx) and int(self._ms_to_idx[-1]) > self.num_events):
-            raise UserError(f"{self.path}: damaged dvsot file (/events/ms_to_idx does not match the events)")
-        self._seg_box = f["segments/xywh"][()].astype(np.float32).reshape(-1, 4)
-        vis = f["segments/xywh_visible"][()] if "segments/xywh_visible" in f else None
-        self._seg_vis = None if vis is None else vis.astype(np.float32).reshape(-1, 4)
+        if "num_events" in self.attrs and _int_attr(self.attrs, "num_events", 0) != self.num_events:
+            raise _Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
+                           f"but /events/t has {self.num_events} rows")
+        _check_duration(self.duration_us, self.segment_us, ev["ms_to_idx"].shape[0], f["segments/xywh"].shape[0])
+        self._ms_to_idx = self._load("events/ms_to_idx")
+        problem = _ms_to_idx_problem(self._ms_to_idx, self.num_events)
+        if problem:
+            raise _Damaged(problem)
+        self._seg_box = self._load("segments/xywh").astype(np.float32)
+        vis = self._load("segments/xywh_visible") if "segments/xywh_visible" in f else None
+        self._seg_vis = None if vis is None else vis.astype(np.float32)
         self.num_segments = int(self._seg_box.shape[0])
-        if self.num_segments != self.duration_us // self.segment_us:
-            raise UserError(f"{self.path}: damaged dvsot file (/segments/xywh has {self.num_segments} rows, "
-                            f"expected {self.duration_us // self.segment_us})")
+        self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
+                        "y": (self.height, f"expected 0 <= y < height {self.height}"),
+                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
+        if self.num_events:  # two chunk reads: in a sorted file the ends bound every timestamp
+            first = int(self._read("t", 0, 1)[0])
+            last = int(self._read("t", self.num_events - 1, self.num_events)[0])
+            if not 0 <= first <= last < self.duration_us:
+                raise _Damaged(f"/events/t runs from {first} us to {last} us, expected "
+                               f"0 <= first <= last < root attribute 'duration_us' ({self.duration_us})")
 
     def __enter__(self) -> "Dataset":
         return self
@@ -332,6 +464,17 @@ class Dataset:
         return (f"Dataset({str(self.path)!r}, {self.width}x{self.height}, {self.duration_us / 1e6:.3f} s, "
                 f"{self.num_events} events, {self.num_segments} segments)")
 
+    def _damaged(self, problem: str) -> UserError:
+        """The UserError for a broken invariant found after opening."""
+        return UserError(f"{self.path}: damaged dvsot file ({problem})")
+
+    def _load(self, name: str) -> np.ndarray:
+        """A whole small dataset (ms_to_idx, boxes, segments) read into memory; a failed read names it."""
+        try:
+            return self._file[name][()]
+        except (OSError, ValueError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise _Damaged(f"cannot read /{name}, its stored data is corrupt ({_short(exc)})") from None
+
     def _index_at(self, t_us: int) -> int:
         """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
         if t_us <= 0:
@@ -343,22 +486,63 @@ class Dataset:
         if lo == hi or t_us % 1000 == 0:
             return lo
         ts = self._read("t", lo, hi)
+        # a search in bad times finds a bad index
+        problem = _times_problem(ts, ms * 1000, (ms + 1) * 1000, lo, f"/events/ms_to_idx[{ms}]")
+        if problem:
+            raise self._damaged(problem)
         return lo + int(np.searchsorted(ts, t_us, side="left"))
 
     def _read(self, column: str, i0: int, i1: int) -> np.ndarray:
         try:
-            return self._file["events"][column][i0:i1]
-        except (OSError, ValueError) as exc:
-            raise UserError(f"{self.path}: damaged dvsot file (cannot read /events/{column}: {_short(exc)})") from None
+            return self._columns[column][i0:i1]
+        except (OSError, ValueError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise self._damaged(f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
+                                f"({_short(exc)})") from None
+
+    def _batch(self, i0: int, i1: int, t0_us: int, t1_us: int, source: str) -> EventBatch:
+        """Events i0..i1-1, checked: sorted times in [t0_us, t1_us) (microseconds), pixels on the sensor, 0/1 flags."""
+        columns = {name: self._read(name, i0, i1) for name in ("x", "y", "t", "p")}
+        if self._has_signal:
+            columns["signal"] = self._read("signal", i0, i1)
+        t = columns.pop("t")
+        problem = _times_problem(t, t0_us, t1_us, i0, source) or _columns_problem(columns, self._limits, i0)
+        if problem:
+            raise self._damaged(problem)
+        sig = columns["signal"].astype(bool) if self._has_signal else None
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig)
 
     def events(self, t0_us: int, t1_us: int) -> EventBatch:
         """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""
-        i0, i1 = self._index_at(int(t0_us)), self._index_at(int(t1_us))
+        t0_us, t1_us = int(t0_us), int(t1_us)
+        i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
         if i1 <= i0:
             return EventBatch.empty()
-        sig = self._read("signal", i0, i1).astype(bool) if "signal" in self._file["events"] else None
-        return EventBatch(self._read("x", i0, i1), self._read("y", i0, i1), self._read("t", i0, i1),
-                          self._read("p", i0, i1), sig)
+        return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
+
+    def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:
+        """Every event in order, `step` at a time, each batch checked like events() and against ms_to_idx."""
+        prev_t, next_ms = 0, 0  # the last timestamp seen (microseconds) and the first ms boundary not yet checked
+        for i0 in range(0, self.num_events, step):
+            i1 = min(i0 + step, self.num_events)
+            batch = self._batch(i0, i1, prev_t, self.duration_us, "time order and duration_us")
+            last_ms = int(batch.t[-1]) // 1000
+            # boundaries after the previous batch's last event and up to this one's are decided by this batch
+            ms = np.arange(next_ms, last_ms + 1)
+            want = i0 + np.searchsorted(batch.t, ms * 1000, side="left")
+            bad = np.flatnonzero(self._ms_to_idx[next_ms:last_ms + 1].astype(np.int64) != want)
+            if len(bad):
+                m = int(ms[bad[0]])
+                raise self._damaged(f"/events/ms_to_idx[{m}] is {int(self._ms_to_idx[m])}, but the first event "
+                                    f"at or after {m * 1000} us is event {int(want[bad[0]])}")
+            prev_t, next_ms = int(batch.t[-1]), last_ms + 1
+            yield batch
+        if np.any(self._ms_to_idx[next_ms:] != self.num_events):  # boundaries after the last event
+            raise self._damaged(f"/events/ms_to_idx points before the end after the last event ({prev_t} us)")
+
+    def verify(self) -> None:
+        """Read and check every event (a full scan); a broken invariant raises UserError naming the file and dataset."""
+        for _ in self.chunks():
+            pass
 
     def segment(self, i: int) -> Segment:
         """Segment i: the events of [i*segment_us, (i+1)*segment_us) and the ground truth at its end."""
@@ -379,9 +563,11 @@ class Dataset:
         return self._seg_box.copy()
 
     def boxes(self) -> BoxTrack:
-        """The box track at every rendered sample."""
-        g = self._file["boxes"]
-        return BoxTrack(g["t"][()], g["xywh"][()].reshape(-1, 4), g["xywh_visible"][()].reshape(-1, 4))
+        """The box track at every rendered sample: t (microseconds), xywh and xywh_visible (pixels)."""
+        try:
+            return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
+        except _Damaged as exc:
+            raise self._damaged(str(exc)) from None
 
 
 def _short(exc: BaseException) -> str:
@@ -394,8 +580,8 @@ def open_dataset(path: str | os.PathLike) -> Dataset:
     return Dataset(path)
 
 
-def find_datasets(spec: str | os.PathLike | list, split: str | None = None) -> list[Path]:
-    """Dataset files named by a directory, a glob, a file or a list of those, optionally of one split."""
+def find_datasets(spec: str | os.PathLike | list, split: str | None = None, verify: bool = True) -> list[Path]:
+    """Dataset files named by a directory, a glob, a file or a list of those, optionally of one split; all checked."""
     specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
     paths: list[Path] = []
     for item in specs:
@@ -413,6 +599,8 @@ def find_datasets(spec: str | os.PathLike | list, split: str | None = None) -> l
     for p in dict.fromkeys(paths):
         with Dataset(p) as ds:
             if split is None or ds.split == split:
+                if verify:  # bench and train find their files here: a damaged one stops them before any output
+                    ds.verify()
                 result.append(p)
     if not result:
         where = ", ".join(str(s) for s in specs)

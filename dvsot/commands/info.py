@@ -23,15 +23,15 @@ def summarise(path: str) -> dict:
     from dvsot.dataset import Dataset
 
     with Dataset(path) as ds:
-        n_pos = 0
-        step = 1 << 22
-        for i in range(0, ds.num_events, step):  # chunked: files may hold hundreds of millions of events
-            n_pos += int(np.count_nonzero(ds._read("p", i, min(i + step, ds.num_events))))
-        n_noise = None
-        if "signal" in ds._file["events"]:
-            n_noise = 0
-            for i in range(0, ds.num_events, step):
-                n_noise += int(np.count_nonzero(ds._read("signal", i, min(i + step, ds.num_events)) == 0))
+        n_pos, n_noise, has_signal = 0, 0, False
+        # chunked (files may hold hundreds of millions of events), and every chunk is checked on the way:
+        # info is where a damaged file should show up, so it reads all of it
+        for batch in ds.chunks():
+            n_pos += int(np.count_nonzero(batch.p))
+            if batch.signal is not None:
+                has_signal = True
+                n_noise += int(np.count_nonzero(~batch.signal))
+        n_noise = n_noise if has_signal else None
         seg = ds.segment_boxes()
         have = ~np.isnan(seg).any(axis=1)
         duration = ds.duration_us / 1e6
