@@ -9,6 +9,17 @@ import numpy as np
 from dvsot.dataset import DatasetWriter
 from dvsot.events import EventParams, EventSimulator
 
+# the smallest valid scene file: a cube in front of the camera, nothing else set
+MINIMAL_SCENE = """name: t
+duration_s: 0.1
+camera:
+  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
+target:
+  shape: cube
+  trajectory:
+    keyframes: [{t: 0, location: [0, 0, 0]}]
+"""
+
 
 def moving_square_file(path: Path, width: int = 160, height: int = 120, size: int = 30, duration_ms: int = 200,
                        velocity_px_s: tuple[float, float] = (150.0, 60.0), start: tuple[float, float] = (30.0, 30.0),

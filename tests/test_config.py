@@ -6,17 +6,10 @@ import pytest
 
 from dvsot.config import load_scene
 from dvsot.errors import UserError
+from synthetic import MINIMAL_SCENE
 
 SCENES = sorted(Path(__file__).resolve().parent.parent.joinpath("blender_scenes").glob("*.yaml"))
-GOOD = """name: t
-duration_s: 0.1
-camera:
-  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
-target:
-  shape: cube
-  trajectory:
-    keyframes: [{t: 0, location: [0, 0, 0]}]
-"""
+GOOD = MINIMAL_SCENE
 
 
 def test_every_shipped_scene_loads_with_its_split():
@@ -38,6 +31,7 @@ def write(tmp_path, text, name="s.yaml"):
     (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
     (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
     (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
+    (GOOD + "events: {cp: .inf}\n", ":9: field 'events.cp': Input should be a finite number"),
     (GOOD + "render: {surface: phong}\n", "field 'render.surface'"),
     (GOOD + "render: {bake_background: sometimes}\n", "field 'render.bake_background'"),
     (GOOD + "render: {bake_texels_per_px: 0}\n", "field 'render.bake_texels_per_px'"),

@@ -138,20 +138,3 @@ def test_bad_parameters_name_the_field():
 def test_non_finite_parameters_are_rejected(field, value):
     with pytest.raises(UserError, match=f"'{field}': Input should be a finite number"):
         EventParams.parse({field: value}, "scene.yaml")
-
-
-def test_scene_file_events_section_rejects_infinity(tmp_path):
-    from dvsot.config import parse_scene
-
-    scene = """name: t
-duration_s: 0.1
-camera:
-  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
-target:
-  shape: cube
-  trajectory:
-    keyframes: [{t: 0, location: [0, 0, 0]}]
-events: {cp: .inf}
-"""
-    with pytest.raises(UserError, match=r"s\.yaml:9: field 'events\.cp': Input should be a finite number"):
-        parse_scene(scene, "s.yaml", tmp_path)

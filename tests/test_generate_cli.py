@@ -5,17 +5,9 @@ import hashlib
 import pytest
 
 from dvsot.cli import main
+from synthetic import MINIMAL_SCENE
 
-SCENE = """name: cli
-duration_s: 0.02
-sensor: {width: 64, height: 48}
-camera:
-  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
-target:
-  shape: cube
-  trajectory:
-    keyframes: [{t: 0, location: [0, 0, 0]}]
-"""
+SCENE = MINIMAL_SCENE.replace("duration_s: 0.1", "duration_s: 0.02\nsensor: {width: 64, height: 48}")
 
 
 def digest(path):
