@@ -39,10 +39,9 @@ def run_ablation(train_files: list[Path], test_files: list[Path], seeds: list[in
             model, _ = train(train_files, cfg, progress=False)
             ious = []
             for f in test_files:
-                bench = SCTNBenchTracker.__new__(SCTNBenchTracker)
-                bench.tracker = SCTNTracker(model, seed=seed, fast=True, finetune_iters=finetune_iters,
-                                            finetune_search_iters=finetune_search_iters, n_candidates=n_candidates)
-                bench.energy_every, bench._updates, bench._energy = 0, 0, None
+                bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, fast=True, finetune_iters=finetune_iters,
+                                                          finetune_search_iters=finetune_search_iters,
+                                                          n_candidates=n_candidates))
                 with Dataset(f) as ds:
                     ious.append(run_sequence(bench, ds, "sctn", max_segments=max_segments).iou)
             s = pooled(ious)

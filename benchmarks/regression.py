@@ -47,9 +47,7 @@ def run_ci_benchmark(workdir: Path) -> dict:
     cfg = TrainConfig(epochs=3, segments_per_epoch=24, batch_segments=2, lr=3e-3, seed=0, val_every=1000,
                       val_segments=2)
     model, _ = train([files["ci_train"]], cfg, progress=False)
-    sctn = SCTNBenchTracker.__new__(SCTNBenchTracker)
-    sctn.tracker = SCTNTracker(model, seed=0, fast=True, finetune_iters=3, n_candidates=64)
-    sctn.energy_every, sctn._updates, sctn._energy = 0, 0, None
+    sctn = SCTNBenchTracker.wrap(SCTNTracker(model, seed=0, fast=True, finetune_iters=3, n_candidates=64))
     out = {}
     with Dataset(files["ci_test"]) as ds:
         for name, tracker in (("sctn", sctn), ("rct", get_tracker("rct"))):

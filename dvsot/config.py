@@ -241,8 +241,8 @@ class SceneConfig(Strict):
     split: Literal["train", "test", ""] = ""
     description: str = ""
     challenges: list[str] = []
-    seed: Int = Field(0, ge=0, description="master seed: every other seed derives from it")
-    duration_s: Float = Field(gt=0, le=600)
+    seed: Int = Field(0, ge=0, le=2**63 - 1, description="master seed: every other seed derives from it")
+    duration_s: Float = Field(ge=0.001, le=600, description="seconds; at least 1 ms")
     segment_ms: Float = Field(10.0, gt=0)
     sensor: Sensor = Sensor()
     camera: Trajectory
@@ -312,7 +312,7 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
     if not isinstance(data, dict):
         raise UserError(f"{source}: a scene file must be a mapping of fields, got {type(data).__name__}")
     for key, value in (overrides or {}).items():
-        _set_path(data, key, value)
+        _set_path(data, key, value, source, node)
     try:
         cfg = SceneConfig.model_validate(data)
     except ValidationError as exc:
@@ -373,11 +373,26 @@ def yaml_value(text: str) -> Any:
     return yaml.load(text, Loader=_UniqueKeyLoader)
 
 
-def _set_path(data: dict, dotted: str, value: Any) -> None:
+def _set_path(data: dict, dotted: str, value: Any, source: str, node: yaml.Node | None) -> None:
+    """Set the field `dotted` (a.b.c) to an override's value; UserError if the file has no mapping there."""
     keys = dotted.split(".")
-    for k in keys[:-1]:
-        data = data.setdefault(k, {})
+    for i, k in enumerate(keys[:-1]):
+        if data.get(k) is None and k not in data:
+            data[k] = {}
+        data = data[k]
+        if not isinstance(data, dict):
+            loc = tuple(keys[:i + 1])
+            line = _line_of(node, loc)
+            raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(loc)}' must be a mapping "
+                            f"(to set {dotted} from the command line), got {type(data).__name__}")
     data[keys[-1]] = value
+
+
+def asset_paths(cfg: SceneConfig) -> list[Path]:
+    """The mesh and image files a loaded scene reads (absolute paths)."""
+    materials = [cfg.target.material, cfg.background.material] + [o.material for o in cfg.objects]
+    meshes = [o.mesh for o in [cfg.target, *cfg.objects] if o.mesh is not None]
+    return meshes + [m.texture.path for m in materials if m.texture is not None and m.texture.path is not None]
 
 
 def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) -> None:

@@ -186,7 +186,10 @@ def test_bad_options_fail_before_the_run(tmp_path, capsys):
              ("rct", "rct.cluster_size=abc", "--option rct.cluster_size=abc: Input should be a valid number"),
              ("test-still", "test-still.bogus=1", "--option test-still.bogus=1: tracker 'test-still' takes no options"),
              ("sctn", "sctn.bogus=1", "--option sctn.bogus=1: tracker 'sctn' has no option 'bogus'"),
-             ("sctn", "sctn.crop=foo", "--option sctn.crop=foo: ValueError: crop must be one of")]
+             ("sctn", "sctn.crop=foo", "--option sctn.crop=foo: Input should be 'bilinear' or 'nearest'"),
+             ("sctn", "sctn.fast=maybe", "--option sctn.fast=maybe: Input should be a valid boolean"),
+             ("sctn", "sctn.n_candidates=0", "--option sctn.n_candidates=0: Input should be greater than or equal to 1"),
+             ("sctn", "sctn.trans=.nan", "--option sctn.trans=.nan: Input should be a finite number")]
     for tracker, option, words in cases:
         fails_cleanly(tmp_path, capsys, ["--tracker", tracker, *data, "--option", option], words)
 
@@ -235,3 +238,10 @@ def test_a_tracker_crash_is_reported_and_exits_1(tmp_path, capsys):
     assert res["test-still"]["still"]["A"] == 1.0 and res["test-still"]["all"]["error"] is None
     assert res["test-crash"]["still"]["error"].startswith("RuntimeError: boom")
     assert res["test-crash"]["all"]["error"] == "all sequences failed"
+
+
+def test_option_values_read_as_yaml():
+    from dvsot.commands.bench import _options
+
+    opts = _options(["sctn.fast=False", "sctn.trans=1e-1", "rct.cluster_size=0.05", "sctn.crop=nearest"], ["sctn", "rct"])
+    assert opts == {"sctn": {"fast": False, "trans": 0.1, "crop": "nearest"}, "rct": {"cluster_size": 0.05}}

@@ -33,6 +33,9 @@ def snapshot(root):
     (lambda d, s: ["-o", str(d / "prev.h5"), "--preview"], "--preview would write this path, a directory"),
     (lambda d, s: ["-o", str(s)], "-o would overwrite an input file"),
     (lambda d, s: [str(s), "--out-dir", str(d / "multi")], "gives the same output"),
+    (lambda d, s: ["--out-dir", str(d / "outs")], "the output of"),  # outs/t.h5 is a directory
+    (lambda d, s: ["-o", str(d / "x.gif"), "--preview"], "--preview would write this path, the dataset file itself"),
+    (lambda d, s: ["-o", str(d / "m.obj")], "-o would overwrite an input file"),  # the scene's own mesh
     (lambda d, s: ["-o", str(d / "o.h5"), "--duration", "nan"], "field 'duration_s' = nan (an override)"),
 ])
 def test_bad_output_paths_fail_before_any_work(tmp_path, scene, capsys, extra, words):
@@ -40,6 +43,9 @@ def test_bad_output_paths_fail_before_any_work(tmp_path, scene, capsys, extra, w
     (tmp_path / "prev.gif").mkdir()
     (tmp_path / "afile").write_text("keep me")
     (tmp_path / "prev.h5").write_bytes(b"an earlier dataset")
+    (tmp_path / "outs" / "t.h5").mkdir(parents=True)
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    scene.write_text(SCENE.replace("shape: cube", "mesh: m.obj"))
     before = snapshot(tmp_path)
     assert main(["generate", str(scene), *extra(tmp_path, scene), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -161,6 +161,12 @@ def test_output_that_is_a_directory_or_the_input_is_refused(tmp_path, capsys):
     (tmp_path / "t.txt").write_text("\n".join(str(i / 100) for i in range(5)))
     assert_refused([ok, "--timestamps", str(tmp_path / "t.txt"), "-o", str(tmp_path / "t.txt")], ["t.txt", "input"],
                    tmp_path, capsys)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i, f in enumerate(stack(3)):
+        cv2.imwrite(str(frames / f"{i:04d}.png"), (np.clip(f, 0, 1) * 255).astype(np.uint8))
+    assert_refused([str(frames), "--fps", "100", "-o", str(frames / "0002.png")], ["0002.png", "-o", "input"],
+                   tmp_path, capsys)
 
 
 @pytest.mark.parametrize("flags, words", [

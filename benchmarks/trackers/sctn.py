@@ -2,27 +2,66 @@
 
 from __future__ import annotations
 
+from typing import Annotated, Literal
+
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
 
+Int = Annotated[int, Strict()]
+Float = Annotated[float, Strict()]
+
+
+class SCTNOptions(BaseModel):
+    """`--option sctn.KEY=VALUE` settings, typed and range-checked; unset ones keep SCTNTracker's defaults."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    checkpoint: str | None = None
+    energy_every: Int = Field(10, ge=0, description="count operations every N segments; 0 = never")
+    seed: Int | None = Field(None, ge=0)
+    fast: Annotated[bool, Strict()] | None = None  # strict: the text "False" must not mean true
+    finetune_iters: Int | None = Field(None, ge=0)
+    finetune_search_iters: Int | None = Field(None, ge=0)
+    n_candidates: Int | None = Field(None, ge=1)
+    trans: Float | None = Field(None, gt=0)
+    trans_growth: Float | None = Field(None, ge=1)
+    trans_max: Float | None = Field(None, gt=0)
+    vstar_threshold: Float | None = None
+    top_k: Int | None = Field(None, ge=1)
+    crop: Literal["bilinear", "nearest"] | None = None
+
 
 @register("sctn")
 class SCTNBenchTracker(Tracker):
-    """SCTN (Algorithm 1) behind the benchmark interface; options pass to sctn.tracker.SCTNTracker."""
+    """SCTN (Algorithm 1) behind the benchmark interface; options (SCTNOptions) pass to sctn.tracker.SCTNTracker."""
 
     name = "sctn"
 
-    def __init__(self, checkpoint: str | None = None, seed: int = 0, fast: bool = True, energy_every: int = 10,
-                 **options) -> None:
+    def __init__(self, **options) -> None:
         import torch
 
         from sctn.tracker import SCTNTracker
 
+        opts = SCTNOptions(**options)
+        checkpoint, energy_every = opts.checkpoint, opts.energy_every
+        opts = opts.model_dump(exclude_none=True, exclude={"checkpoint", "energy_every"})
         torch.set_num_threads(1)  # the benchmark runs sequences in parallel processes
-        self.tracker = SCTNTracker(checkpoint, seed=seed, fast=fast, **options)
+        self.tracker = SCTNTracker(checkpoint, **opts)
+        self._start(energy_every)
+
+    @classmethod
+    def wrap(cls, tracker, energy_every: int = 0) -> "SCTNBenchTracker":
+        """The benchmark interface around an SCTNTracker already built (e.g. on a model just trained)."""
+        self = cls.__new__(cls)
+        self.tracker = tracker
+        self._start(energy_every)
+        return self
+
+    def _start(self, energy_every: int) -> None:
         self.energy_every = energy_every
         self._updates = 0
         self._energy: dict | None = None

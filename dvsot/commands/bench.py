@@ -94,9 +94,8 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
 
 
 def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
-    """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values parsed as JSON when they are)."""
-    import json
-
+    """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
+    from dvsot.config import yaml_value
     from dvsot.errors import UserError
 
     out: dict[str, dict] = {}
@@ -107,11 +106,7 @@ def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
             raise UserError(f"--option {spec!r}: expected TRACKER.KEY=VALUE")
         if name not in trackers:
             raise UserError(f"--option {spec!r}: tracker '{name}' is not in this run")
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
-        out.setdefault(name, {})[key] = value
+        out.setdefault(name, {})[key] = yaml_value(raw)  # as in a scene file: false, False, 0.05, 1e-3, text
     return out
 
 

@@ -68,24 +68,27 @@ def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
     """The dataset file of each scene, every output path checked (and --out-dir made) before rendering."""
     from pathlib import Path
 
+    from dvsot.config import asset_paths
     from dvsot.errors import UserError
     from dvsot.outputs import output_dir, output_file
 
+    inputs = paths + [a for c in configs for a in asset_paths(c)]  # scene files, meshes, image textures
     if args.output:
-        outs = [output_file(args.output, "-o", paths)]
+        outs = [output_file(args.output, "-o", inputs)]
     else:
         out_dir = output_dir(args.out_dir or "out", "--out-dir")
         outs = [out_dir / f"{c.name}.h5" for c in configs]
-        for o, p in zip(outs, paths):
-            if o.is_dir():
-                raise UserError(f"{o}: the output of {p} names a directory, not a file")
     seen: dict = {}
     for o, p in zip(outs, paths):
+        if o.is_dir() or o.exists():
+            output_file(o, f"the output of {p}", inputs)
         if o.resolve() in seen:
             raise UserError(f"{p}: scene name gives the same output {o} as {seen[o.resolve()]}; rename one")
         seen[o.resolve()] = p
-        if args.preview and o.with_suffix(".gif").is_dir():
-            raise UserError(f"{o.with_suffix('.gif')}: --preview would write this path, a directory")
+        gif = o.with_suffix(".gif")
+        if args.preview and (gif.is_dir() or gif == o):
+            raise UserError(f"{gif}: --preview would write this path, " + ("a directory" if gif.is_dir() else
+                                                                            "the dataset file itself"))
     if args.keep_frames:
         output_dir(args.keep_frames, "--keep-frames")
     if not args.output:

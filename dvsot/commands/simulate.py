@@ -143,7 +143,10 @@ def run(args: argparse.Namespace) -> int:
 
     params = _event_params(args)
     _check_flags(args)
-    output_file(args.output, "-o", inputs=[p for p in (args.input, args.timestamps, args.boxes) if p])
+    inputs = [Path(p) for p in (args.input, args.timestamps, args.boxes) if p]
+    if inputs[0].is_dir():  # a frames directory: none of its files may be overwritten either
+        inputs += sorted(inputs[0].iterdir())
+    output_file(args.output, "-o", inputs)
     source = open_frames(args.input, srgb=args.srgb)
     if args.timestamps:
         t_us = read_timestamps(args.timestamps, source.count)
