@@ -19,9 +19,16 @@ COMMANDS: dict[str, str] = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad flag reported in one line (not the usage block first), exit status 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser, one sub-parser per command module that is present."""
-    parser = argparse.ArgumentParser(prog="dvsot", description=__doc__)
+    parser = _Parser(prog="dvsot", description=__doc__)
     parser.add_argument("--version", action="version", version=f"dvsot {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True

@@ -51,3 +51,15 @@ def test_bad_output_paths_fail_before_any_work(tmp_path, scene, capsys, extra, w
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
     assert snapshot(tmp_path) == before  # nothing made, nothing changed
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["train", "--loss", "bogus"], "dvsot train: error: argument --loss: invalid choice: 'bogus'"),
+    (["bench", "--max-segments", "abc"], "dvsot bench: error: argument --max-segments: invalid int value: 'abc'"),
+    ([], "dvsot: error: the following arguments are required: COMMAND"),
+])
+def test_a_bad_flag_is_one_line_with_exit_status_2(capsys, argv, words):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert info.value.code == 2 and len(err) == 1 and err[0].startswith(words), err
