@@ -70,12 +70,11 @@ def save_figure(fig, out_png: str | os.PathLike, dpi: int) -> Path:
     """Save a figure as PNG via a temp file and a rename (a picture is never half-written); closes the figure."""
     import matplotlib.pyplot as plt
 
-    out = Path(out_png)
-    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    from dvsot.outputs import replacing
+
     try:
-        fig.savefig(tmp, dpi=dpi, format="png")  # format given: the temp name does not end in .png
-        tmp.replace(out)
+        with replacing(out_png) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
     finally:
         plt.close(fig)
-        tmp.unlink(missing_ok=True)
-    return out
+    return Path(out_png)

@@ -10,7 +10,6 @@ import csv
 import io
 import json
 import math
-import os
 from pathlib import Path
 
 from benchmarks.metrics import pooled, scores
@@ -160,14 +159,11 @@ def to_latex(summary: dict) -> str:
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write text to path via a temp file and a rename, so a reader never sees half a file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
+    from dvsot.outputs import replacing
+
+    with replacing(path) as tmp:
         tmp.write_text(text)
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)  # only left when the write or the rename failed
-    return path
+    return Path(path)
 
 
 TABLE_FILES = {"txt": "table.txt", "csv": "results.csv", "json": "results.json", "md": "results.md",

@@ -408,7 +408,7 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) ->
         if not full.is_file():
             raise UserError(f"{where}: file not found: {full}")
         try:
-            read(full)
+            read(full.resolve())
         except UserError as exc:
             raise UserError(f"{where}: {exc}") from None
         setattr(obj, attr, full.resolve())
@@ -438,14 +438,9 @@ def _read_image(path: Path) -> None:
         except Exception as exc:  # OpenEXR raises several kinds for damaged files
             raise UserError(f"{path}: cannot read image ({' '.join(str(exc).split())[:200]})") from None
     else:
-        import cv2
+        from dvsot.frames import imread
 
-        level = cv2.getLogLevel()
-        cv2.setLogLevel(2)  # errors only: its decoder warnings would precede our one line
-        try:
-            ok = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) is not None
-        finally:
-            cv2.setLogLevel(level)
+        ok = imread(path) is not None
     if not ok:
         raise UserError(f"{path}: cannot read image (not an image file OpenCV or OpenEXR can decode)")
 

@@ -229,7 +229,7 @@ class DatasetWriter:
             tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
             ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
             f = self._file
-            ck = {"fletcher32": True} if self._checksum else {}
+            ck = {"fletcher32": self._checksum}
             f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
             g = f.create_group("boxes")
             g.create_dataset("t", data=box_t, maxshape=(None,), **ck)
@@ -473,7 +473,7 @@ class Dataset:
         try:
             return self._file[name][()]
         except (OSError, ValueError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise _Damaged(f"cannot read /{name}, its stored data is corrupt ({_short(exc)})") from None
+            raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({_short(exc)})") from None
 
     def _index_at(self, t_us: int) -> int:
         """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
@@ -564,10 +564,7 @@ class Dataset:
 
     def boxes(self) -> BoxTrack:
         """The box track at every rendered sample: t (microseconds), xywh and xywh_visible (pixels)."""
-        try:
-            return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
-        except _Damaged as exc:
-            raise self._damaged(str(exc)) from None
+        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
 
 
 def _short(exc: BaseException) -> str:

@@ -43,8 +43,8 @@ def _quiet_opencv() -> Iterator[None]:
         cv2.setLogLevel(level)
 
 
-def _imread(path: Path) -> np.ndarray | None:
-    """cv2.imread without OpenCV's warnings; None if the file cannot be decoded."""
+def imread(path: Path) -> np.ndarray | None:
+    """cv2.imread (any depth, channels kept) without OpenCV's warnings; None if the file cannot be decoded."""
     with _quiet_opencv():
         return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
 
@@ -95,7 +95,7 @@ class FrameSource:
 
     def _images(self) -> Iterator[np.ndarray]:
         for p in _image_files(self.path):
-            img = _imread(p)
+            img = imread(p)
             if img is None:
                 raise UserError(f"{p}: cannot read image")
             frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
@@ -128,7 +128,7 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
         files = _image_files(p)
         if not files:
             raise UserError(f"{p}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in this directory")
-        first = _imread(files[0])
+        first = imread(files[0])
         if first is None:
             raise UserError(f"{files[0]}: cannot read image")
         h, w = first.shape[:2]
@@ -160,18 +160,23 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
     raise UserError(f"{p}: not an image directory, a video ({', '.join(sorted(VIDEO_SUFFIXES))}) or a .npy stack")
 
 
+def text_lines(path: str | os.PathLike, what: str) -> list[tuple[int, str]]:
+    """(1-based line number, text) of a text file's lines that hold something once `#` comments are cut off."""
+    p = Path(path)
+    try:
+        lines = p.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
+        raise UserError(f"{p}: cannot read {what} ({reason})") from None
+    numbered = ((no, ln.split("#")[0].strip()) for no, ln in enumerate(lines, start=1))
+    return [(no, ln) for no, ln in numbered if ln]
+
+
 def read_timestamps(path: str | os.PathLike, count: int) -> np.ndarray:
     """Timestamps in microseconds from a file of seconds, one per line (as ESIM reads them); checked."""
     p = Path(path)
-    try:
-        lines = [ln.split("#")[0].strip() for ln in p.read_text().splitlines()]
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
-        raise UserError(f"{p}: cannot read timestamps ({reason})") from None
     values = []
-    for no, ln in enumerate(lines, start=1):
-        if not ln:
-            continue
+    for no, ln in text_lines(p, "timestamps"):
         try:
             v = float(ln.split()[0])
         except ValueError:

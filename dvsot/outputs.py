@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Iterator
 
 from dvsot.errors import UserError
 
@@ -34,3 +35,15 @@ def output_dir(path: str | Path, flag: str) -> Path:
                 raise UserError(f"{p}: {flag}: {parent} is a file, not a directory")
             break
     return p
+
+
+@contextmanager
+def replacing(path: str | Path) -> Iterator[Path]:
+    """A temp path beside `path` (same suffix) to write; renamed onto `path` if the block succeeds, else removed."""
+    p = Path(path)
+    tmp = p.with_name(f".{p.stem}.tmp-{os.getpid()}{p.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)  # only left when the write or the rename failed

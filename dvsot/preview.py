@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from dvsot.events import EventBatch
+from dvsot.outputs import replacing
 
 GT_COLOUR = (40, 170, 40)  # RGB
 PALETTE = [(230, 120, 0), (150, 40, 200), (0, 150, 200), (200, 0, 80), (120, 90, 20), (110, 110, 110)]
@@ -102,9 +103,8 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
         if own:
             ds.close()
     out.parent.mkdir(parents=True, exist_ok=True)
-    # write next to the target and rename, so a crash never leaves a half-written preview behind
-    tmp = out.with_name(f".{out.stem}.tmp-{os.getpid()}{out.suffix}")
-    try:
+    # written beside the target and renamed, so a crash never leaves a half-written preview behind
+    with replacing(out) as tmp:
         if out.suffix.lower() == ".gif":
             import imageio.v2 as imageio
 
@@ -116,7 +116,4 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
             for f in frames:
                 writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
             writer.release()
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
     return out

@@ -6,6 +6,7 @@ to `size_m`. The cat is a composite of ellipsoids and cones (body, head, ears, t
 
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -150,6 +151,7 @@ def normalise(mesh: Mesh) -> Mesh:
     return (v - (lo + hi) / 2) / size, f
 
 
+@lru_cache(maxsize=32)  # the scene check, the sample times and the Blender build each ask for it
 def load_mesh_file(path: Path) -> Mesh:
     """Vertices and triangles of an OBJ/PLY/STL/GLB/glTF file (via trimesh); UserError if unreadable."""
     import trimesh
@@ -164,6 +166,7 @@ def load_mesh_file(path: Path) -> Mesh:
     v = np.asarray(loaded.vertices, float)
     if path.suffix.lower() in {".glb", ".gltf"}:
         v = v[:, [0, 2, 1]] * np.array([1, -1, 1])
+    v.setflags(write=False)  # cached: shared by every caller
     return v, np.asarray(loaded.faces).tolist()
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import torch
 
 from dvsot.errors import UserError
+from dvsot.outputs import replacing
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -41,18 +42,12 @@ def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
     p = check_checkpoint_output(path)
     meta_path = metadata_path(p)
     state = {k: v.detach().to(torch.float32).clone() for k, v in model.state_dict().items()}
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    tmp_json = meta_path.with_name(f".{meta_path.name}.tmp-{os.getpid()}")
-    try:
+    # both are complete before either replaces anything (the checkpoint first), so a failed write leaves
+    # the old pair intact
+    with replacing(meta_path) as tmp_json, replacing(p) as tmp:
         torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(), "state_dict": state,
                     "meta": meta}, tmp)
         tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
-        # both are complete before either replaces anything, so a failed write leaves the old pair intact
-        os.replace(tmp, p)
-        os.replace(tmp_json, meta_path)
-    finally:
-        for t in (tmp, tmp_json):
-            t.unlink(missing_ok=True)
     return p
 
 

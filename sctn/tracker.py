@@ -28,7 +28,7 @@ import torch
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_search
 from sctn.network import SCTN, check_crop
-from sctn.samples import TRACK, SampleSpec, propose
+from sctn.samples import TRACK, propose
 from sctn.train import finetune
 
 

@@ -42,14 +42,11 @@ class SCTNBenchTracker(Tracker):
     name = "sctn"
 
     def __init__(self, **options) -> None:
-        import torch
-
         from sctn.tracker import SCTNTracker
 
         opts = SCTNOptions(**options)
         checkpoint, energy_every = opts.checkpoint, opts.energy_every
         opts = opts.model_dump(exclude_none=True, exclude={"checkpoint", "energy_every"})
-        torch.set_num_threads(1)  # the benchmark runs sequences in parallel processes
         self.tracker = SCTNTracker(checkpoint, **opts)
         self._start(energy_every)
 

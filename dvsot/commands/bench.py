@@ -90,6 +90,8 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
             n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
             return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
                                   error=one_line(exc))
+        if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
+            sys.modules["torch"].set_num_threads(1)
         return run_sequence(instance, ds, tracker, max_segments=max_segments)
 
 
@@ -110,15 +112,8 @@ def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
     return out
 
 
-def _name(path) -> str:
-    from dvsot.dataset import Dataset
-
-    with Dataset(path) as ds:
-        return ds.name
-
-
-def resolve_data(specs: list[str] | None, split: str) -> list:
-    """The dataset files to benchmark; each must hold ground truth. Raises UserError otherwise."""
+def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
+    """{sequence name: dataset file} to benchmark; each must hold ground truth and a name of its own."""
     import numpy as np
 
     from dvsot.dataset import Dataset, find_datasets
@@ -129,24 +124,14 @@ def resolve_data(specs: list[str] | None, split: str) -> list:
             raise UserError(f"{DEFAULT_DATA}: no default data; make it with "
                             f"`dvsot generate blender_scenes/*.yaml --out-dir {DEFAULT_DATA}` or pass --data")
         specs = [DEFAULT_DATA]
-    files = find_datasets(specs, split=None if split == "any" else split)
-    for f in files:
+    out: dict[str, Path] = {}
+    for f in find_datasets(specs, split=None if split == "any" else split):
         with Dataset(f) as ds:
             if ds.num_segments == 0 or np.isnan(ds.segment_boxes()).any(axis=1).all():
                 raise UserError(f"{f}: sequence has no ground-truth boxes to track")
-    return files
-
-
-def _sequences(files: list) -> dict[str, Path]:
-    """{sequence name: file}; two files with one name would share (and overwrite) a table column."""
-    from dvsot.errors import UserError
-
-    out: dict[str, Path] = {}
-    for f in files:
-        name = _name(f)
-        if name in out:
-            raise UserError(f"{f}: sequence '{name}' is also in {out[name]}; the tables need distinct names")
-        out[name] = Path(f)
+            if ds.name in out:  # two files with one name would share (and overwrite) a table column
+                raise UserError(f"{f}: sequence '{ds.name}' is also in {out[ds.name]}; the tables need distinct names")
+            out[ds.name] = Path(f)
     return out
 
 
@@ -204,19 +189,6 @@ def _option_key(exc: BaseException, options: dict) -> str | None:
     return next(iter(options)) if len(options) == 1 else None
 
 
-def _build_in_main(name: str, options: dict) -> None:
-    """Build a tracker and drop it, keeping torch's thread count (sctn's constructor sets 1, for the workers)."""
-    from benchmarks.trackers import get_tracker
-
-    torch = __import__("torch") if name == "sctn" else sys.modules.get("torch")
-    threads = torch.get_num_threads() if torch is not None else None
-    try:
-        get_tracker(name, **options)
-    finally:
-        if threads is not None:
-            torch.set_num_threads(threads)
-
-
 def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
     """The one-line UserError for a tracker that its --option values did not build."""
     from dvsot.errors import UserError
@@ -236,11 +208,12 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
 
 def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
     """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
+    from benchmarks.trackers import get_tracker
     from dvsot.errors import UserError
 
     for name in trackers:
         try:
-            _build_in_main(name, options.get(name, {}))
+            get_tracker(name, **options.get(name, {}))
         except UserError:
             raise
         except Exception as exc:
@@ -297,8 +270,8 @@ def plan(args: argparse.Namespace) -> Plan:
             raise UserError("--option sctn.checkpoint: give the checkpoint once, with --checkpoint")
         options.setdefault("sctn", {})["checkpoint"] = args.checkpoint
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
-    files = resolve_data(args.data, args.split)
-    sequences = _sequences(files)
+    sequences = resolve_data(args.data, args.split)
+    files = list(sequences.values())
     for seq in args.video:
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")

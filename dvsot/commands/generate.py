@@ -66,7 +66,6 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
 
 def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
     """The dataset file of each scene, every output path checked (and --out-dir made) before rendering."""
-    from pathlib import Path
 
     from dvsot.config import asset_paths
     from dvsot.errors import UserError
@@ -102,7 +101,6 @@ def run(args: argparse.Namespace) -> int:
     import json
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
-    from pathlib import Path
 
     from dvsot.config import load_scene
     from dvsot.errors import UserError

@@ -102,19 +102,12 @@ def _box_row(path: str, no: int, line: str) -> list[float]:
 
 def _read_boxes(path: str, t_origin_us: int):
     """Box times (us, relative to the first frame) and x,y,w,h rows from the --boxes CSV; checked line by line."""
-    from pathlib import Path
-
     import numpy as np
 
     from dvsot.errors import UserError
+    from dvsot.frames import text_lines
 
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
-        raise UserError(f"{path}: cannot read boxes as CSV t_s,x,y,w,h ({reason})") from None
-    numbered = [(no, ln.split("#")[0].strip()) for no, ln in enumerate(text.splitlines(), start=1)]
-    numbered = [(no, ln) for no, ln in numbered if ln]
+    numbered = text_lines(path, "boxes as CSV t_s,x,y,w,h")
     if not numbered:
         raise UserError(f"{path}: no boxes (expected lines t_s,x,y,w,h)")
     rows = np.array([_box_row(path, no, ln) for no, ln in numbered], np.float64)
