@@ -11,7 +11,7 @@ from __future__ import annotations
 import hashlib
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Callable, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, ValidationError, model_validator
@@ -295,9 +295,11 @@ def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
     return line
 
 
-def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None,
-                overrides: dict[str, Any] | None = None) -> SceneConfig:
-    """Validate scene YAML text; relative asset paths resolve against base_dir. Raises UserError."""
+Locate = Callable[[tuple], "int | None"]  # field path (keys, list indices) -> its 1-based line in the file
+
+
+def read_yaml(text: str, source: str = "<scene>") -> tuple[Any, Locate]:
+    """Parse YAML text as a scene file is read: (data, locate), locate(loc) the line of a field. Raises UserError."""
     try:
         node = yaml.compose(text)
         data = yaml.load(text, Loader=_UniqueKeyLoader)
@@ -309,10 +311,23 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
         where = f":{mark.line + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise UserError(f"{source}{where}: YAML syntax error: {problem}") from None
+    return data, lambda loc: _line_of(node, tuple(loc))
+
+
+def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None,
+                overrides: dict[str, Any] | None = None) -> SceneConfig:
+    """Validate scene YAML text; relative asset paths resolve against base_dir. Raises UserError."""
+    data, locate = read_yaml(text, source)
+    return validate_scene(data, source, locate, base_dir, overrides)
+
+
+def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None = None,
+                   overrides: dict[str, Any] | None = None) -> SceneConfig:
+    """Validate scene data read from `source`; errors name the field and its line (from locate). Raises UserError."""
     if not isinstance(data, dict):
         raise UserError(f"{source}: a scene file must be a mapping of fields, got {type(data).__name__}")
     for key, value in (overrides or {}).items():
-        _set_path(data, key, value, source, node)
+        _set_path(data, key, value, source, locate)
     try:
         cfg = SceneConfig.model_validate(data)
     except ValidationError as exc:
@@ -324,17 +339,17 @@ def parse_scene(text: str, source: str = "<scene>", base_dir: Path | None = None
             msg = "unknown field"
         if field in (overrides or {}):  # the value came from the command line, not from the file
             raise UserError(f"{source}: field '{field}' = {overrides[field]!r} (an override): {msg}") from None
-        line = _line_of(node, loc)
+        line = locate(loc)
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
     try:
         cfg.event_params()
     except ValidationError as exc:
         err = exc.errors()[0]
         field = "events." + ".".join(str(p) for p in err["loc"])
-        line = _line_of(node, tuple(field.split(".")))
+        line = locate(tuple(field.split(".")))
         msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
-    _check_assets(cfg, source, base_dir or Path("."), node)
+    _check_assets(cfg, source, base_dir or Path("."), locate)
     return cfg
 
 
@@ -373,7 +388,7 @@ def yaml_value(text: str) -> Any:
     return yaml.load(text, Loader=_UniqueKeyLoader)
 
 
-def _set_path(data: dict, dotted: str, value: Any, source: str, node: yaml.Node | None) -> None:
+def _set_path(data: dict, dotted: str, value: Any, source: str, locate: Locate) -> None:
     """Set the field `dotted` (a.b.c) to an override's value; UserError if the file has no mapping there."""
     keys = dotted.split(".")
     for i, k in enumerate(keys[:-1]):
@@ -382,7 +397,7 @@ def _set_path(data: dict, dotted: str, value: Any, source: str, node: yaml.Node 
         data = data[k]
         if not isinstance(data, dict):
             loc = tuple(keys[:i + 1])
-            line = _line_of(node, loc)
+            line = locate(loc)
             raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(loc)}' must be a mapping "
                             f"(to set {dotted} from the command line), got {type(data).__name__}")
     data[keys[-1]] = value
@@ -395,7 +410,7 @@ def asset_paths(cfg: SceneConfig) -> list[Path]:
     return meshes + [m.texture.path for m in materials if m.texture is not None and m.texture.path is not None]
 
 
-def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) -> None:
+def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> None:
     """Resolve mesh and image paths against the scene file's folder and read each once: a missing or
     unreadable file is an error here, before anything is rendered (Blender itself only warns)."""
     def fix(obj: Any, attr: str, loc: tuple, read) -> None:
@@ -403,7 +418,7 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, node: yaml.Node) ->
         if p is None:
             return
         full = p if p.is_absolute() else (base / p)
-        line = _line_of(node, loc)
+        line = locate(loc)
         where = f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}'"
         if not full.is_file():
             raise UserError(f"{where}: file not found: {full}")
