@@ -1,4 +1,4 @@
-"""The dvsot dataset file (HDF5, format version 1): a streaming writer and a lazy reader.
+"""The dvsot dataset file (HDF5, format version 2): a streaming writer and a lazy reader.
 
 Layout (DSEC-compatible events, see docs/ARCHITECTURE.md and DESIGN.md):
 
@@ -13,6 +13,12 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md and DESIGN.md):
     /segments/t            i8  (M,) end time of each segment, microseconds
     /segments/xywh         f4  (M, 4) ground truth per segment, at the segment's end time
     /segments/xywh_visible f4  (M, 4) visible-part ground truth per segment
+    /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
+    /t_offset              i8  scalar, microseconds added to /events/t to get the recording's own clock
+                               (0 for synthetic data)
+
+Event columns are byte-shuffled and gzip (level 1) compressed, filters every HDF5 library has, so
+h5dump and readers outside h5py open them. Version 1 files (LZF, no root link, no /t_offset) still load, with offset 0.
 
 The writer appends events in chunks and computes `ms_to_idx` as it goes, so a sequence of hundreds
 of millions of events never sits in memory. It writes to a temporary name beside the target and
@@ -41,7 +47,15 @@ from dvsot.errors import UserError
 from dvsot.events import EventBatch
 
 FORMAT = "dvsot"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+# name -> h5py filter options for event columns. gzip and shuffle are built into every HDF5 library; gzip 1
+# after the byte shuffle is ~0.4x LZF's size and as fast to read (benchmarks/perf/bench_compression.py)
+COMPRESSIONS: dict[str | None, dict[str, Any]] = {
+    "gzip": {"compression": "gzip", "compression_opts": 1, "shuffle": True},
+    "gzip-noshuffle": {"compression": "gzip", "compression_opts": 1},
+    "lzf": {"compression": "lzf"},  # version 1's choice: h5py-only, h5dump and hdf5plugin cannot read it
+    None: {},
+}
 _EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
 _REQUIRED = ("events/x", "events/y", "events/t", "events/p", "events/ms_to_idx",
              "boxes/t", "boxes/xywh", "boxes/xywh_visible", "segments/t", "segments/xywh")
@@ -101,8 +115,8 @@ class DatasetWriter:
     """Streams events and boxes into a new dataset file; renames it into place only on success."""
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
-                 attrs: dict[str, Any] | None = None, compression: str | None = "lzf",
-                 checksum: bool = True) -> None:
+                 attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
+                 checksum: bool = True, t_offset_us: int = 0) -> None:
         if width <= 0 or height <= 0:
             raise ValueError(f"width and height must be positive, got {width}x{height}")
         if segment_us <= 0:
@@ -113,13 +127,17 @@ class DatasetWriter:
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
         self.tmp_path = self.path.with_name(f".{self.path.name}.tmp-{os.getpid()}")
         self._file = h5py.File(self.tmp_path, "w")
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression must be one of {sorted(map(str, COMPRESSIONS))}, got {compression!r}")
         self._compression = compression
+        self._filter = COMPRESSIONS[compression]
+        self.t_offset_us = int(t_offset_us)  # the recording's clock minus /events/t, microseconds
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
         ev = self._file.create_group("events")
         for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
             ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
-                              compression=compression, fletcher32=self._checksum)
+                              fletcher32=self._checksum, **self._filter)
         self._has_signal: bool | None = None
         self._buffer: list[EventBatch] = []
         self._buffered = 0
@@ -164,8 +182,8 @@ class DatasetWriter:
             self._has_signal = batch.signal is not None
             if self._has_signal:
                 self._file["events"].create_dataset("signal", shape=(0,), maxshape=(None,), dtype=np.uint8,
-                                                    chunks=(_EVENT_CHUNK,), compression=self._compression,
-                                                    fletcher32=self._checksum)
+                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
+                                                    **self._filter)
         elif self._has_signal != (batch.signal is not None):
             raise ValueError("either every event batch carries signal flags or none does")
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
@@ -231,6 +249,8 @@ class DatasetWriter:
             f = self._file
             ck = {"fletcher32": self._checksum}
             f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
+            f["ms_to_idx"] = f["events/ms_to_idx"]  # a hard link: one table, two names
+            f.create_dataset("t_offset", data=np.int64(self.t_offset_us))
             g = f.create_group("boxes")
             g.create_dataset("t", data=box_t, maxshape=(None,), **ck)
             g.create_dataset("xywh", data=box_xywh, maxshape=(None, 4), **ck)
@@ -274,7 +294,7 @@ class DatasetWriter:
 # Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).
 _LAYOUT: dict[str, tuple[str, int]] = {
     "events/x": ("ui", 1), "events/y": ("ui", 1), "events/t": ("ui", 1), "events/p": ("uib", 1),
-    "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1),
+    "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
     "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
     "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
 }
@@ -314,6 +334,25 @@ def _check_layout(f: h5py.File) -> None:
         for name, n in rows.items():
             if n != rows[first]:
                 raise _Damaged(f"/{name} has {n} rows, /{first} has {rows[first]}")
+
+
+def _check_root_links(f: h5py.File, version: int) -> int:
+    """Raise _Damaged unless root /ms_to_idx is /events/ms_to_idx and /t_offset a scalar integer; return the offset (us)."""
+    if version >= 2:
+        for name in ("ms_to_idx", "t_offset"):
+            if name not in f:
+                raise _Damaged(f"missing /{name}")
+    if "ms_to_idx" in f:
+        root, events = f["ms_to_idx"], f["events/ms_to_idx"]
+        # a copy that kept the values (e.g. a tool that does not preserve hard links) is as good as the link
+        if root.id != events.id and (root.shape != events.shape or not np.array_equal(root[()], events[()])):
+            raise _Damaged("/ms_to_idx differs from /events/ms_to_idx")
+    if "t_offset" not in f:
+        return 0
+    obj = f["t_offset"]
+    if not isinstance(obj, h5py.Dataset) or obj.shape != () or obj.dtype.kind not in "ui":
+        raise _Damaged("/t_offset is not a scalar integer (microseconds)")
+    return int(obj[()])
 
 
 def _int_attr(attrs: dict[str, Any], name: str, minimum: int, maximum: int | None = None) -> int:
@@ -414,6 +453,7 @@ class Dataset:
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         _check_layout(f)
+        self.t_offset_us = _check_root_links(f, version)
         self.attrs: dict[str, Any] = {k: _decode_attr(v) for k, v in f.attrs.items()}
         self.width = _int_attr(self.attrs, "width", 1, _MAX_PIXELS)
         self.height = _int_attr(self.attrs, "height", 1, _MAX_PIXELS)
