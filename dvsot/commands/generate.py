@@ -4,6 +4,9 @@ Examples:
   dvsot generate blender_scenes/quickstart.yaml -o out/quickstart.h5 --preview
   dvsot generate blender_scenes/*.yaml --out-dir data/dvsot21 --jobs 2
   dvsot generate blender_scenes/city_cat.yaml -o /tmp/cc.h5 --duration 0.3 --resolution 320x240
+  dvsot generate blender_scenes/random_dvsot21.yaml --variants 5 --dry-run
+  dvsot generate blender_scenes/random_dvsot21.yaml --variants 500 --out-dir data/random --scheduler local:2
+  dvsot generate blender_scenes/random_dvsot21.yaml --variants 500 --out-dir /shared/random --scheduler tcp://head:8786
 """
 
 from __future__ import annotations
@@ -22,6 +25,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=1, help="scenes rendered in parallel processes (default 1)")
     p.add_argument("--keep-frames", help="directory to keep rendered luma frames (.npy) in")
     p.add_argument("--quiet", action="store_true", help="no progress bar; JSON summary")
+    many = p.add_argument_group("many scenes (a template's variants, a cluster; writes <out-dir>/manifest.json)")
+    many.add_argument("--variants", type=int, help="draw N scenes from one template file (its distributions)")
+    many.add_argument("--dry-run", action="store_true", help="print the drawn scenes (checked), render nothing")
+    many.add_argument("--scheduler", help="local:N (a LocalCluster of N worker processes) or tcp://HOST:PORT")
+    many.add_argument("--retries", type=int, default=1, help="times a failed scene is resubmitted (default 1)")
+    many.add_argument("--resume", action="store_true", help="skip scenes whose output exists, verifies and holds them")
 
 
 def _overrides(args: argparse.Namespace) -> dict:
@@ -112,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"{spec}: no scene files match")
         paths += found
     overrides = _overrides(args)
+    if args.variants is not None or args.scheduler or args.dry_run or args.resume:
+        return _many(args, paths, overrides)
     configs = [load_scene(p, overrides) for p in paths]  # all bad input is reported before any rendering
     if args.output and len(paths) > 1:
         raise UserError("-o names one output file; use --out-dir for several scenes")
@@ -131,3 +142,42 @@ def run(args: argparse.Namespace) -> int:
         else:
             print("\n".join(f"{k:>24}: {v}" for k, v in s.items()))
     return 0
+
+
+def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
+    """A template's variants or several scenes, each its own task (dvsot.batch); exit 1 if any finally failed."""
+    import json
+    import sys
+
+    from dvsot.batch import generate_many, scene_tasks, variant_tasks
+    from dvsot.errors import UserError
+    from dvsot.scale import summary_line
+
+    if args.output or args.keep_frames:
+        raise UserError("--variants, --scheduler, --dry-run and --resume write <name>.h5 files and a manifest into "
+                        "--out-dir; -o and --keep-frames do not apply")
+    if args.variants is not None:
+        if len(paths) != 1:
+            raise UserError(f"--variants draws from one template file, got {len(paths)}")
+        tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview)
+    else:
+        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview)
+    if args.dry_run:
+        for t in tasks:
+            print(f"# ---- {t.name}: {t.output}\n{t.text}")
+        return 0
+    scheduler = args.scheduler or (f"local:{args.jobs}" if args.jobs > 1 else None)
+
+    def report(rec: dict) -> None:
+        if args.quiet:
+            if rec["status"] != "retrying":
+                print(json.dumps(rec), flush=True)
+        else:
+            tried = rec["attempts"][-1]
+            where = f" on {tried['worker']}" if tried.get("worker") else ""
+            print(f"{rec['name']}: {rec['status']}{where}" + (f": {rec['error']}" if rec["error"] else ""),
+                  file=sys.stderr, flush=True)
+
+    manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report)
+    print(summary_line(manifest), file=sys.stderr)
+    return 1 if any(r["status"] == "failed" for r in manifest.records) else 0

@@ -1,0 +1,85 @@
+"""Many scenes in one run: a template's variants or scene files as checked tasks, rendered by dvsot.scale.
+
+Everything is checked before any task is submitted: every variant drawn and validated (its file, line and
+field named on an error), every output path and the manifest's.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from dvsot.config import asset_paths, load_scene
+from dvsot.errors import UserError
+from dvsot.outputs import output_dir, output_file
+from dvsot.scale import Manifest, SceneTask, run_scenes
+from dvsot.templates import draw_variants, read_template, validate_variant
+
+MANIFEST = "manifest.json"
+
+
+def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrides: dict | None = None,
+                  preview: bool = False) -> tuple[list[SceneTask], list[Path]]:
+    """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5."""
+    if count < 1:
+        raise UserError(f"--variants must be >= 1, got {count}")
+    tpl = read_template(template)
+    out = Path(out_dir).resolve()
+    tasks, inputs = [], [Path(template)]
+    for v in draw_variants(tpl, count):
+        cfg = validate_variant(tpl, v, dict(overrides or {}), note=f"(variant {v.index})")
+        inputs += asset_paths(cfg)
+        tasks.append(SceneTask(name=v.name, text=v.text(Path(template).name), source=f"{template} (variant {v.index})",
+                               base_dir=str(tpl.base_dir), output=str(out / f"{v.name}.h5"),
+                               overrides=dict(overrides or {}), preview=preview,
+                               record={"variant": v.index, "seed": v.seed, "drawn": v.drawn}))
+    return tasks, inputs
+
+
+def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = None,
+                preview: bool = False) -> tuple[list[SceneTask], list[Path]]:
+    """Validate scene files; (tasks, input files) with outputs <out_dir>/<scene name>.h5."""
+    out = Path(out_dir).resolve()
+    tasks, inputs = [], []
+    for p in paths:
+        cfg = load_scene(p, dict(overrides or {}))
+        inputs += [Path(p), *asset_paths(cfg)]
+        tasks.append(SceneTask(name=cfg.name, text=Path(p).read_text(), source=str(p),
+                               base_dir=str(Path(p).parent.resolve()), output=str(out / f"{cfg.name}.h5"),
+                               overrides=dict(overrides or {}), preview=preview, record={"seed": cfg.seed}))
+    return tasks, inputs
+
+
+def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path]) -> Path:
+    """Check every output path (and the manifest's) before any work; make out_dir; the manifest's path."""
+    out = output_dir(out_dir, "--out-dir")
+    seen: dict = {}
+    for t in tasks:
+        o = Path(t.output)
+        if o.is_dir() or o.exists():
+            output_file(o, f"the output of {t.source}", inputs)
+        if o in seen:
+            raise UserError(f"{t.source}: scene name gives the same output {o} as {seen[o]}; rename one")
+        seen[o] = t.source
+        gif = o.with_suffix(".gif")
+        if t.preview and gif.is_dir():
+            raise UserError(f"{gif}: --preview would write this path, a directory")
+    manifest = out / MANIFEST
+    if manifest.is_dir() or manifest.exists():
+        output_file(manifest, "the manifest", inputs)
+    out.mkdir(parents=True, exist_ok=True)
+    return manifest
+
+
+def generate_many(tasks: list[SceneTask], inputs: list[Path], out_dir: str | Path, scheduler: str | None = None,
+                  retries: int = 1, resume: bool = False,
+                  report: Callable[[dict], None] | None = None) -> Manifest:
+    """Check the outputs, then render every task (here, or on `scheduler`); the manifest of the run."""
+    if retries < 0:
+        raise UserError(f"--retries must be >= 0, got {retries}")
+    if scheduler is not None:
+        from dvsot.scale import parse_scheduler
+
+        parse_scheduler(scheduler)
+    manifest = check_outputs(tasks, out_dir, inputs)
+    return run_scenes(tasks, manifest, scheduler, retries, resume, report)
