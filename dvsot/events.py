@@ -9,6 +9,10 @@ Semantics (after ESIM, Rebecq et al. 2018), per pixel:
   u0 < k*C <= u1 is crossed once: an event at t0 + (k*C - u0) / (u1 - u0) * (t1 - t0)
   (microseconds, rounded to the nearest integer). A pixel may fire several times per interval; the
   reference moves by C per crossing (ref += pol * k_max * C).
+* Ties are exact: the reference is kept as an offset from the first frame's L (a sum of whole
+  thresholds, so a return to the first frame's value is compared against 0 exactly), and levels are
+  counted as floor(u / C + 1e-9) (dvsot.event_kernel.TIE_TOL), so a sample that returns to a level it
+  fired from, which exact arithmetic puts on the level, counts as on it whatever the rounding of u.
 * C+ and C- are separate (cp, cn). Threshold mismatch: with mismatch="fixed" (default) each pixel
   draws its own C+ ~ N(cp, sigma_cp) and C- ~ N(cn, sigma_cn) once, clamped to >= min_threshold;
   with mismatch="per_interval" they are drawn anew for every interval, as ESIM does (where a smaller
@@ -24,8 +28,8 @@ Semantics (after ESIM, Rebecq et al. 2018), per pixel:
 * Events of one interval are sorted by time, ties by pixel index (y * width + x), then by crossing
   order. The same frames, timestamps, parameters and seed give bit-identical events.
 
-Everything is vectorised over pixels and events; only pixels that fire are touched after the first
-few whole-frame operations.
+The per-pixel work is one compiled pass (dvsot.event_kernel) that emits each interval's events
+already in time order.
 """
 
 from __future__ import annotations
@@ -37,6 +41,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from dvsot.errors import UserError
+
+
+# The kernel's first pass compares |L1 - ref| with a float32 gate this much below the pixel's smaller
+# threshold: far more than the rounding of ref or of the float32, so no pixel that fires is skipped.
+GATE_MARGIN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -116,8 +125,11 @@ class EventSimulator:
         self._rng_threshold = np.random.default_rng(seeds[0])
         self._rng_noise = np.random.default_rng(seeds[1])
         n = self.width * self.height
-        self._cp, self._cn = self._draw_thresholds()
-        self._ref = np.zeros(n, np.float64)
+        self._set_thresholds(*self._draw_thresholds())
+        self._scratch = np.empty(n, np.int32)  # the kernel's list of pixels that may fire
+        self._base = np.zeros(n, np.float64)  # L of the first frame: the origin of each pixel's levels
+        self._off = np.zeros(n, np.float64)  # reference level minus base (a sum of whole thresholds)
+        self._ref = np.zeros(n, np.float64)  # base + off: the kernel's quick test of which pixels may fire
         self._last = np.zeros(n, np.float64)  # L at the previous sample
         self._last_event = np.full(n, -np.inf)  # time of the last emitted event, float microseconds
         self._t_prev: int | None = None
@@ -133,12 +145,17 @@ class EventSimulator:
                 out.append(float(c))
         return out[0], out[1]
 
+    def _set_thresholds(self, cp: np.ndarray | float, cn: np.ndarray | float) -> None:
+        """Use these C+ and C- (scalars or one per pixel); the kernel gets one float64 per pixel and the minima."""
+        n = self.width * self.height
+        self._cp, self._cn = cp, cn
+        self._cp_px, self._cn_px = (c if isinstance(c, np.ndarray) else np.full(n, float(c)) for c in (cp, cn))
+        self._gate = (np.minimum(self._cp_px, self._cn_px) * (1 - GATE_MARGIN)).astype(np.float32)
+
     @property
     def thresholds(self) -> tuple[np.ndarray, np.ndarray]:
         """Current per-pixel C+ and C- as (height, width) arrays (log intensity)."""
-        shape = (self.height, self.width)
-        return tuple(np.broadcast_to(np.asarray(c, np.float64), (self.width * self.height,)).reshape(shape)
-                     for c in (self._cp, self._cn))
+        return self._cp_px.reshape(self.height, self.width), self._cn_px.reshape(self.height, self.width)
 
     def _log_frame(self, frame: np.ndarray, is_log: bool) -> np.ndarray:
         a = np.asarray(frame)
@@ -147,15 +164,18 @@ class EventSimulator:
         if a.dtype.kind not in "fiu":
             raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
         out = self._buf
-        np.copyto(out, a.reshape(-1), casting="unsafe")
-        total = out.sum()
-        if not np.isfinite(total):
-            raise UserError("frame contains NaN or infinite values")
         if is_log:
+            np.copyto(out, a.reshape(-1), casting="unsafe")
+            if not np.isfinite(out.sum()):
+                raise UserError("frame contains NaN or infinite values")
             return out
-        if out.min() < 0:
+        # checks on the frame as given (float32 from the frame readers: half the bytes of float64)
+        lo, hi = a.min(), a.max()  # NaN propagates into both
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise UserError("frame contains NaN or infinite values")
+        if lo < 0:
             raise UserError("frame contains negative intensities")
-        out += self.params.log_eps
+        np.add(a.reshape(-1), self.params.log_eps, out=out, dtype=np.float64, casting="unsafe")
         np.log(out, out=out)
         return out
 
@@ -164,6 +184,7 @@ class EventSimulator:
         t_us = int(t_us)
         L1 = self._log_frame(frame, is_log)
         if self._t_prev is None:
+            self._base[:] = L1
             self._ref[:] = L1
             self._last[:] = L1
             self._t_prev = t_us
@@ -173,57 +194,16 @@ class EventSimulator:
         t0, t1 = self._t_prev, t_us
         p = self.params
         if p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0):
-            self._cp, self._cn = self._draw_thresholds()
-        signal = self._crossings(L1, float(t0), float(t1))
+            self._set_thresholds(*self._draw_thresholds())
+        from dvsot.event_kernel import interval_events  # numba: imported when the first events are due
+
+        x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate, self._cp_px,
+                                       self._cn_px, self._last_event, float(p.refractory_us), t0, t1, self.width, self._scratch)
+        signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
         noise = self._noise(t0, t1)
         self._last, self._buf = L1, self._last
         self._t_prev = t1
-        return _sorted_batch(signal, noise, self.width, t0, t1)
-
-    def _crossings(self, L1: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, ...]:
-        """Pixel index, time (float us) and polarity of every emitted crossing; updates ref and last-event time."""
-        ref = self._ref
-        d = L1 - ref
-        fire = (d >= self._cp) | (d <= -np.asarray(self._cn))
-        idx = np.flatnonzero(fire)
-        if idx.size == 0:
-            return _empty_crossings()
-        l0, l1, r = self._last[idx], L1[idx], ref[idx]
-        pos = l1 >= l0
-        pol = np.where(pos, 1.0, -1.0)
-        c = np.where(pos, _take(self._cp, idx), _take(self._cn, idx))
-        u0, u1 = pol * (l0 - r), pol * (l1 - r)
-        k_lo = np.maximum(1.0, np.floor(u0 / c) + 1.0)
-        k_hi = np.floor(u1 / c)
-        n = np.maximum(k_hi - k_lo + 1.0, 0.0).astype(np.int64)
-        # dropped (refractory) crossings still move the reference; n == 0 leaves it where it is
-        ref[idx] += np.where(n > 0, pol * k_hi * c, 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):  # u1 == u0 only where n == 0 (rounding at a level)
-            span = (t1 - t0) / (u1 - u0)
-        t_first = t0 + (k_lo * c - u0) * span
-        dt = c * span  # time between consecutive crossings of one pixel
-        R = self.params.refractory_us
-        if R > 0:
-            since = t_first - self._last_event[idx]
-            j0 = np.maximum(np.ceil((R - since) / dt - 1e-9), 0.0)
-            m = np.maximum(np.ceil(R / dt - 1e-9), 1.0)
-            n_keep = np.where(j0 < n, (n - 1 - j0) // m + 1, 0).astype(np.int64)
-        else:
-            j0, m, n_keep = 0.0, 1.0, n
-        total = int(n_keep.sum())
-        if total == 0:
-            return _empty_crossings()
-        owner = np.repeat(np.arange(idx.size), n_keep)
-        rank = np.arange(total, dtype=np.float64) - (np.cumsum(n_keep) - n_keep)[owner]
-        if R > 0:
-            j = j0[owner] + rank * m[owner]
-            last_j = j0 + (n_keep - 1) * m
-            emitted = n_keep > 0
-            self._last_event[idx[emitted]] = (t_first + last_j * dt)[emitted]
-        else:
-            j = rank
-        times = t_first[owner] + j * dt[owner]
-        return idx[owner], times, pos[owner]
+        return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
 
     def _noise(self, t0: int, t1: int) -> tuple[np.ndarray, ...]:
         """Shot-noise and leak events (pixel index, float us time, polarity) in (t0, t1]."""
@@ -243,31 +223,18 @@ class EventSimulator:
         return tuple(np.concatenate(col) for col in zip(*parts))
 
 
-def _take(c: np.ndarray | float, idx: np.ndarray) -> np.ndarray | float:
-    return c[idx] if isinstance(c, np.ndarray) else c
-
-
 def _empty_crossings() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.empty(0, np.int64), np.empty(0, np.float64), np.empty(0, bool)
 
 
-def _sorted_batch(signal: tuple[np.ndarray, ...], noise: tuple[np.ndarray, ...], width: int, t0: int,
-                  t1: int) -> EventBatch:
-    """Signal and noise crossings as one EventBatch sorted by (integer time, pixel, crossing order)."""
-    pix = np.concatenate([signal[0], noise[0]]) if noise[0].size else signal[0]
-    if pix.size == 0:
-        return EventBatch.empty()
-    times = np.concatenate([signal[1], noise[1]]) if noise[0].size else signal[1]
-    pol = np.concatenate([signal[2], noise[2]]) if noise[0].size else signal[2]
-    flag = np.ones(pix.size, bool)
-    flag[signal[0].size:] = False
-    t_rel = np.rint(times - t0).astype(np.int64)
-    if noise[0].size == 0 and t1 - t0 < 1 << 16:
-        # signal crossings come out in pixel order already, so a stable sort on the time offset alone
-        # gives (time, pixel, crossing) order; on uint16 keys numpy's stable sort is a radix sort.
-        order = np.argsort(t_rel.astype(np.uint16), kind="stable")
-    else:
-        order = np.argsort(t_rel * (int(pix.max()) + 1) + pix, kind="stable")
+def _merge_noise(signal: EventBatch, noise: tuple[np.ndarray, ...], width: int, t0: int) -> EventBatch:
+    """Time-ordered signal events and noise (pixel, float us, polarity) as one batch sorted by (time, pixel), signal first."""
+    pix_n, times, pol_n = noise
+    pix = np.concatenate([signal.y.astype(np.int64) * width + signal.x, pix_n])
+    t_rel = np.concatenate([signal.t - t0, np.rint(times - t0).astype(np.int64)])
+    pol = np.concatenate([signal.p, pol_n.astype(np.uint8)])
+    flag = np.concatenate([signal.signal, np.zeros(pix_n.size, bool)])
+    order = np.argsort(t_rel * (int(pix.max()) + 1) + pix, kind="stable")
     pix = pix[order]
     return EventBatch((pix % width).astype(np.uint16), (pix // width).astype(np.uint16), t_rel[order] + t0,
-                      pol[order].astype(np.uint8), flag[order])
+                      pol[order], flag[order])

@@ -1,0 +1,118 @@
+"""The compiled level-crossing kernel of dvsot.events: one interval of every pixel, events out in time order.
+
+The semantics are dvsot.events' (and docs/events.md's). This module only holds the numba code that
+implements them, so that the simulator's Python side stays a thin driver: one pass over the pixels
+counts and times the crossings (pixel order), a counting sort on the whole-microsecond time offset
+puts them in (time, pixel, crossing) order without a comparison sort. Both release the GIL, so frame
+decoding and file writing threads run beside them.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+# Level crossings are counted in units of the threshold: floor(u / C + TIE_TOL). A sample that lies on
+# a level up to TIE_TOL * C below it in floating point counts as on it (see docs/events.md, "Ties").
+TIE_TOL = 1e-9
+# Refractory test slack, microseconds: crossings R apart in exact arithmetic are not dropped by rounding.
+REFRACTORY_SLACK_US = 1e-6
+# Intervals longer than this (microseconds) are time-ordered by a stable merge sort instead of a
+# counting sort over every microsecond of the interval.
+MAX_COUNTING_US = 1 << 22
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _levels(l1, l0, base, off, cp, cn):
+    """(rising, C, u0, u1, k_lo, k_hi) of one pixel: levels k_lo..k_hi of C are crossed (none if k_hi < k_lo)."""
+    rising = l1 >= l0
+    c = cp if rising else cn
+    rel1 = (l1 - base) - off  # L1 relative to the reference
+    u1 = rel1 if rising else -rel1
+    k_hi = np.floor(u1 / c + TIE_TOL)
+    if k_hi < 1.0:
+        return rising, c, 0.0, u1, 1.0, k_hi
+    rel0 = (l0 - base) - off
+    u0 = rel0 if rising else -rel0
+    return rising, c, u0, u1, max(1.0, np.floor(u0 / c + TIE_TOL) + 1.0), k_hi
+
+
+@numba.njit(cache=True, nogil=True)
+def interval_events(L1, last, base, off, ref, gate, cp, cn, last_event, refractory_us, t0, t1, width, scratch):
+    """Crossings of every pixel between samples last (t0) and L1 (t1): x, y, t (us), p in time order.
+
+    L1, last and base are log intensities (float64, one per pixel); off is the reference minus base and
+    ref = base + off (updated in place, with last_event in us); cp and cn the per-pixel thresholds, gate
+    a float32 just below the smaller of the two; scratch an int32 array of one entry per pixel.
+    """
+    # pass 1 reads 20 bytes a pixel: one that has not moved a threshold from its reference cannot fire
+    n_cand = 0
+    for i in range(L1.shape[0]):  # branch-free: the store always happens, the count moves on candidates
+        scratch[n_cand] = i
+        n_cand += abs(L1[i] - ref[i]) >= gate[i]
+    bound = 0  # crossings before the refractory test: room for every event
+    for j in range(n_cand):
+        i = scratch[j]
+        _, _, _, _, k_lo, k_hi = _levels(L1[i], last[i], base[i], off[i], cp[i], cn[i])
+        if k_hi >= k_lo:
+            bound += int(k_hi - k_lo) + 1
+    code = np.empty(bound, np.int64)  # pixel * 2 + polarity
+    trel = np.empty(bound, np.int64)  # whole microseconds after t0
+    span_us = float(t1 - t0)
+    ne = 0
+    for j in range(n_cand):
+        i = scratch[j]
+        rising, c, u0, u1, k_lo, k_hi = _levels(L1[i], last[i], base[i], off[i], cp[i], cn[i])
+        if k_hi < k_lo:
+            continue
+        # the reference moves to the last level crossed, also past crossings the refractory period drops
+        off[i] += k_hi * c if rising else -k_hi * c
+        ref[i] = base[i] + off[i]
+        per_unit = span_us / (u1 - u0)  # u1 > u0 here: k_hi >= k_lo > u0 / C + TIE_TOL
+        k = k_lo
+        while k <= k_hi:
+            dt = min(max((k * c - u0) * per_unit, 0.0), span_us)  # the tolerance may reach past t1
+            k += 1.0
+            if refractory_us > 0.0:
+                t_abs = t0 + dt
+                if t_abs - last_event[i] < refractory_us - REFRACTORY_SLACK_US:
+                    continue
+                last_event[i] = t_abs
+            code[ne] = 2 * i + (1 if rising else 0)
+            trel[ne] = np.int64(np.rint(dt))
+            ne += 1
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+
+
+@numba.njit(cache=True, nogil=True)
+def _time_ordered(code, trel, t0, span, width):
+    """Events given in (pixel, crossing) order (code = pixel * 2 + polarity) as x, y, t, p stably sorted by t."""
+    n = code.shape[0]
+    sorted_code = np.empty(n, np.int64)
+    t = np.empty(n, np.int64)
+    if span <= MAX_COUNTING_US:  # counting sort: one pass to count, one to place
+        start = np.zeros(span + 2, np.int64)
+        for j in range(n):
+            start[trel[j] + 1] += 1
+        for b in range(1, span + 2):
+            start[b] += start[b - 1]
+        for b in range(span + 1):
+            t[start[b]:start[b + 1]] = t0 + b
+        for j in range(n):
+            k = start[trel[j]]
+            start[trel[j]] += 1
+            sorted_code[k] = code[j]
+    else:
+        order = np.argsort(trel, kind="mergesort")
+        for k in range(n):
+            sorted_code[k] = code[order[k]]
+            t[k] = t0 + trel[order[k]]
+    x = np.empty(n, np.uint16)
+    y = np.empty(n, np.uint16)
+    p = np.empty(n, np.uint8)
+    for k in range(n):
+        pixel = sorted_code[k] >> 1
+        x[k] = pixel % width
+        y[k] = pixel // width
+        p[k] = sorted_code[k] & 1
+    return x, y, t, p
