@@ -14,6 +14,8 @@ from typing import Mapping
 
 import numpy as np
 
+from dvsot.names import plot_text  # sequence and tracker names are free text: no mathtext, one line
+
 FAILURE_IOU = 0.5  # the protocol's failure threshold, drawn as a reference line
 
 
@@ -49,18 +51,18 @@ def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png:
             counted = np.isfinite(iou)
             mean = float(np.mean(iou[counted])) if counted.any() else float("nan")
             # NaN breaks the line, so uncounted segments show as gaps
-            ax.plot(t_s, iou, lw=1.0, color=colors(k % 10), label=f"{name} (mean {mean:.3f})")
+            ax.plot(t_s, iou, lw=1.0, color=colors(k % 10), label=f"{plot_text(name)} (mean {mean:.3f})")
             fails = counted & (iou < FAILURE_IOU)
             ax.plot(t_s[fails], iou[fails], "x", ms=3, color=colors(k % 10))
         ax.axhline(FAILURE_IOU, color="grey", lw=0.8, ls="--")
         ax.set_ylim(-0.02, 1.02)
         ax.set_ylabel("IoU")
-        ax.set_title(seq, fontsize=10, loc="left")
+        ax.set_title(plot_text(seq), fontsize=10, loc="left")
         ax.legend(fontsize=8, loc="lower right", ncol=min(4, len(trackers)))
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("time (s); x = failure (IoU < 0.5), gaps = segments that do not count")
     if title:
-        fig.suptitle(title)
+        fig.suptitle(plot_text(title))
     fig.tight_layout()
     save_figure(fig, out, dpi=110)
     return out

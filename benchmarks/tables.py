@@ -14,6 +14,7 @@ from pathlib import Path
 
 from benchmarks.metrics import pooled, scores
 from benchmarks.protocol import SequenceResult
+from dvsot.names import latex_text, markdown_cell, one_line  # sequence and tracker names are free text
 
 ALL = "all"
 
@@ -61,9 +62,9 @@ def _f(v: float | None) -> str:
 def terminal(summary: dict) -> str:
     """A fixed-width table: per tracker an 'A R' row and an ARscore row, plus speed and initialisation time."""
     seqs = _sequences(summary)
-    name_w = max([7] + [len(t) for t in summary])
-    col_w = max([13] + [len(s) for s in seqs])
-    lines = [" " * name_w + " | " + " | ".join(s.center(col_w) for s in seqs) + " | seg/s | init s",
+    name_w = max([7] + [len(one_line(t)) for t in summary])
+    col_w = max([13] + [len(one_line(s)) for s in seqs])
+    lines = [" " * name_w + " | " + " | ".join(one_line(s).center(col_w) for s in seqs) + " | seg/s | init s",
              " " * name_w + " | " + " | ".join("A      R".center(col_w) for _ in seqs) + " |       |"]
     lines.append("-" * len(lines[0]))
     for tracker, per_seq in summary.items():
@@ -80,7 +81,7 @@ def terminal(summary: dict) -> str:
                 ar_row.append(f"{_f(cell['A'])}  {_f(cell['R'])}".center(col_w))
                 score_row.append(_f(cell["ARscore"]).center(col_w))
         speed, init = per_seq[ALL]["segments_per_s"], per_seq[ALL]["init_s"]
-        lines.append(tracker.ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}")
+        lines.append(one_line(tracker).ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}")
         lines.append(" " * name_w + " | " + " | ".join(score_row) + " |       |")
     return "\n".join(lines)
 
@@ -120,14 +121,14 @@ def to_json(summary: dict) -> str:
 def to_markdown(summary: dict) -> str:
     """A Markdown table: each cell 'A / R / **ARscore**'."""
     seqs = _sequences(summary)
-    lines = ["| tracker | " + " | ".join(seqs) + " | seg/s | init s |", "|---|" + "---|" * (len(seqs) + 2)]
+    lines = ["| tracker | " + " | ".join(map(markdown_cell, seqs)) + " | seg/s | init s |", "|---|" + "---|" * (len(seqs) + 2)]
     for tracker, per_seq in summary.items():
         cells = []
         for s in seqs:
             c = per_seq.get(s)
             cells.append("" if c is None else "failed" if c["error"] else
                          f"{_f(c['A'])} / {_f(c['R'])} / **{_f(c['ARscore'])}**")
-        lines.append(f"| {tracker} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} | "
+        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} | "
                      f"{per_seq[ALL]['init_s']:.1f} |")
     return "\n".join(lines) + ("\n\nEach cell: A / R / **ARscore** (b = 2). seg/s: tracked segments per second of "
                                "update time; init s: seconds spent initialising (SCTN fine-tunes on the first segment).\n")
@@ -136,7 +137,7 @@ def to_markdown(summary: dict) -> str:
 def to_latex(summary: dict) -> str:
     """A LaTeX tabular in the paper's layout: A and R side by side, ARscore centred beneath."""
     seqs = _sequences(summary)
-    esc = lambda s: s.replace("_", r"\_")  # noqa: E731
+    esc = latex_text
     lines = [r"\begin{tabular}{l" + "cc" * len(seqs) + "}", r"\hline",
              "Method & " + " & ".join(rf"\multicolumn{{2}}{{c}}{{{esc(s)}}}" for s in seqs) + r" \\",
              " & " + " & ".join("A & R" for _ in seqs) + r" \\", " & " + " & ".join(

@@ -47,6 +47,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _close_progress_bars() -> None:
+    """Close every live tqdm bar now (its last state stays on screen), so nothing is drawn after our message."""
+    tqdm = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", None) or []):
+        bar.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
     parser = build_parser()
@@ -57,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        _close_progress_bars()  # else each redraws itself at exit, under the message
         print(f"dvsot {args.command}: interrupted", file=sys.stderr)
         return 130
 

@@ -16,13 +16,20 @@ from typing import Annotated, Any, Callable, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, ValidationError, model_validator
 
+from dvsot import validate
 from dvsot.errors import UserError
 from dvsot.events import EventParams
+from dvsot.scene_checks import look_at_problems
 
 # Numbers must be numbers: no "1.6" strings or true/false where a number goes (an int is a fine float)
 Float = Annotated[float, StrictType()]
 Int = Annotated[int, StrictType()]
-Vec3 = tuple[Float, Float, Float]
+# Sane ranges (dvsot.scene_checks has the checks that need the whole scene): coordinates within 1000 km
+# (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
+Coord = Annotated[Float, Field(ge=-1e6, le=1e6)]
+Vec3 = tuple[Coord, Coord, Coord]
+Scale = Annotated[Float, Field(ge=1e-3, le=1e3)]
+Size = Annotated[Float, Field(gt=0, le=1e4, description="metres")]
 Colour = tuple[Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)]]
 
 
@@ -69,7 +76,7 @@ class Keyframe(Strict):
     location: Vec3 | None = None
     rotation_deg: Vec3 | None = None
     look_at: Vec3 | None = None
-    scale: Float | Vec3 | None = None
+    scale: Scale | tuple[Scale, Scale, Scale] | None = None
 
     @model_validator(mode="after")
     def _one_rotation(self) -> "Keyframe":
@@ -141,7 +148,7 @@ class SceneObject(Strict):
     name: str | None = None
     shape: Shape | None = None
     mesh: Path | None = Field(None, description="OBJ, PLY, STL, GLB or glTF file")
-    size_m: Float = Field(1.0, gt=0, description="largest extent after scaling, metres")
+    size_m: Size = Field(1.0, description="largest extent after scaling, metres")
     material: Material = Material()
     trajectory: Trajectory
 
@@ -167,7 +174,7 @@ class Background(Strict):
     material: Material = Material(texture=Texture(type="noise"))
     location: Vec3 = (0.0, 8.0, 0.0)
     rotation_deg: Vec3 = (90.0, 0.0, 0.0)
-    size_m: Float = Field(40.0, gt=0)
+    size_m: Size = 40.0
 
 
 class Light(Strict):
@@ -178,7 +185,7 @@ class Light(Strict):
     color: Colour = (1.0, 1.0, 1.0)
     location: Vec3 = (0.0, -6.0, 6.0)
     rotation_deg: Vec3 = (40.0, 0.0, 20.0)
-    size_m: Float = Field(1.0, gt=0)
+    size_m: Size = 1.0
 
 
 class World(Strict):
@@ -243,7 +250,7 @@ class SceneConfig(Strict):
     challenges: list[str] = []
     seed: Int = Field(0, ge=0, le=2**63 - 1, description="master seed: every other seed derives from it")
     duration_s: Float = Field(ge=0.001, le=600, description="seconds; at least 1 ms")
-    segment_ms: Float = Field(10.0, gt=0)
+    segment_ms: Float = Field(10.0, ge=1, le=60_000, description="milliseconds, at least 1 (dvsot.validate)")
     sensor: Sensor = Sensor()
     camera: Trajectory
     target: SceneObject
@@ -274,6 +281,19 @@ class SceneConfig(Strict):
         return int.from_bytes(digest[:4], "little")
 
 
+def _field_loc(loc: tuple) -> tuple:
+    """A pydantic error location without its validator and union-member tags ('function-after[..]', 'constrained-float')."""
+    return tuple(p for p in loc if not (isinstance(p, str) and ("-" in p or "[" in p)))
+
+
+def _chosen_error(errors: list[dict]) -> dict:
+    """The error to report: the first, but for a union (one field, an error per member) the member whose type
+    matched (a range error, not 'should be a valid number' from the member of another type)."""
+    first = _field_loc(errors[0]["loc"])
+    same = [e for e in errors if _field_loc(e["loc"])[:len(first)] == first]
+    return next((e for e in same if not e["type"].endswith("_type")), errors[0])
+
+
 def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
     """The 1-based YAML line of the field at loc (or of its nearest existing parent)."""
     line = node.start_mark.line + 1 if node is not None else None
@@ -300,8 +320,14 @@ Locate = Callable[[tuple], "int | None"]  # field path (keys, list indices) -> i
 
 def read_yaml(text: str, source: str = "<scene>") -> tuple[Any, Locate]:
     """Parse YAML text as a scene file is read: (data, locate), locate(loc) the line of a field. Raises UserError."""
+    problem = validate.yaml_text_problem(text)  # size and depth, before a parser that recurses per level
+    if problem:
+        raise UserError(f"{source}: {problem}")
     try:
         node = yaml.compose(text)
+        problem = validate.yaml_nodes_problem(node)  # before anything expands the aliases
+        if problem:
+            raise UserError(f"{source}: {problem}")
         data = yaml.load(text, Loader=_UniqueKeyLoader)
     except _DuplicateKey as exc:
         raise UserError(f"{source}:{exc.problem_mark.line + 1}: field '{exc.key}' is given twice "
@@ -331,8 +357,8 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
     try:
         cfg = SceneConfig.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+        err = _chosen_error(exc.errors())
+        loc = _field_loc(err["loc"])
         field = ".".join(str(p) for p in loc) or "(top level)"
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
@@ -349,6 +375,9 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
         line = locate(tuple(field.split(".")))
         msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
+    for loc, msg in look_at_problems(cfg):
+        line = locate(loc)
+        raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}': {msg}")
     _check_assets(cfg, source, base_dir or Path("."), locate)
     return cfg
 
@@ -420,8 +449,9 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
         full = p if p.is_absolute() else (base / p)
         line = locate(loc)
         where = f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}'"
-        if not full.is_file():
-            raise UserError(f"{where}: file not found: {full}")
+        kind = validate.file_kind_problem(full)
+        if kind:
+            raise UserError(f"{where}: " + (f"file not found: {full}" if kind == "no such file" else f"{full} {kind}"))
         try:
             read(full.resolve())
         except UserError as exc:
@@ -463,7 +493,14 @@ def _read_image(path: Path) -> None:
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> SceneConfig:
     """Read and validate a scene file; every problem raises UserError naming file, field and line."""
     p = Path(path)
+    kind = validate.file_kind_problem(p)  # checked first: reading a FIFO would wait forever
+    if kind:
+        raise UserError(f"{p}: " + ("no such scene file" if kind == "no such file" else f"{kind}, not a scene file"))
     try:
+        size = p.stat().st_size
+        if size > validate.MAX_SCENE_BYTES:
+            raise UserError(f"{p}: {size} bytes, more than the bound of {validate.MAX_SCENE_BYTES} bytes (1 MB) "
+                            f"for a scene file")
         text = p.read_text()
     except FileNotFoundError:
         raise UserError(f"{p}: no such scene file") from None

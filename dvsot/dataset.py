@@ -29,6 +29,12 @@ The reader checks the layout and attributes when it opens a file, and the invari
 of events it loads (time order, time window, pixel range, 0/1 flags) on the data already in memory;
 `Dataset.chunks` streams and checks the whole file. Any violation is a one-line UserError naming the
 file and the dataset or attribute. Files written before checksums were added still load.
+
+Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.validate),
+and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
+`attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
+digest (no `attrs_sha256`) load without that check. Whole datasets read into memory are bounded in
+rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ from typing import Any, Iterator
 import h5py
 import numpy as np
 
+from dvsot import validate
 from dvsot.errors import UserError
 from dvsot.events import EventBatch
 
@@ -117,10 +124,11 @@ class DatasetWriter:
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
                  checksum: bool = True, t_offset_us: int = 0) -> None:
-        if width <= 0 or height <= 0:
-            raise ValueError(f"width and height must be positive, got {width}x{height}")
-        if segment_us <= 0:
-            raise ValueError(f"segment_us must be positive, got {segment_us}")
+        if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
+            raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
+                             f"all, got {width}x{height}")
+        if segment_us < validate.MIN_SEGMENT_US:
+            raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
         self.path = Path(path)
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
@@ -237,10 +245,16 @@ class DatasetWriter:
             box_vis = np.concatenate(self._box_vis) if self._box_vis else np.empty((0, 4), np.float32)
             if len(box_t) > 1 and np.any(np.diff(box_t) <= 0):
                 raise ValueError("box sample times must be strictly increasing")
+            for what, rows in (("xywh", box_xywh), ("xywh_visible", box_vis)):
+                problem = validate.box_problem(rows, self.width, self.height)
+                if problem:
+                    raise ValueError(f"boxes {what}: {problem}")
             if duration_us is None:
                 candidates = [self._last_t + 1 if self._count else 0, int(box_t[-1]) if len(box_t) else 0]
                 duration_us = max(candidates)
             duration_us = int(duration_us)
+            if duration_us > validate.MAX_DURATION_US:
+                raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
             if self._count and self._last_t >= duration_us:
                 raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
             duration_ms = -(-duration_us // 1000)
@@ -273,6 +287,8 @@ class DatasetWriter:
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count)
             for key, value in attrs.items():
                 f.attrs[key] = _encode_attr(value)
+            # over the values as a reader decodes them, so both sides hash the same thing
+            f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: _decode_attr(v) for k, v in f.attrs.items()})
             f.close()
             os.replace(self.tmp_path, self.path)
         except BaseException:
@@ -369,6 +385,18 @@ def _int_attr(attrs: dict[str, Any], name: str, minimum: int, maximum: int | Non
     return int(value)
 
 
+def _check_sizes(f: h5py.File) -> None:
+    """Raise _Damaged if a dataset the reader loads whole is longer than dvsot.validate's bounds allow."""
+    limits = {"events/ms_to_idx": (validate.MAX_DURATION_US // 1000 + 1, f"{validate.MAX_DURATION_S} s per file"),
+              "segments/xywh": (validate.MAX_DURATION_US // validate.MIN_SEGMENT_US,
+                                f"{validate.MAX_DURATION_S} s in segments of at least {validate.MIN_SEGMENT_US} us"),
+              "boxes/t": (validate.MAX_BOX_ROWS, "box samples per file")}
+    for name, (bound, why) in limits.items():
+        problem = validate.rows_problem(name, f[name].shape[0], bound, why)
+        if problem:
+            raise _Damaged(problem)
+
+
 def _check_duration(duration_us: int, segment_us: int, n_ms_to_idx: int, n_segments: int) -> None:
     """Raise _Damaged unless /events/ms_to_idx and /segments/xywh are as long as duration_us (microseconds) implies."""
     want_ms, want_seg = -(-duration_us // 1000) + 1, duration_us // segment_us
@@ -427,11 +455,13 @@ class Dataset:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
-        if not self.path.is_file():
-            raise UserError(f"{self.path}: no such dataset file")
+        kind = validate.file_kind_problem(self.path)
+        if kind:
+            raise UserError(f"{self.path}: " + ("no such dataset file" if kind == "no such file" else
+                                                f"{kind}, not a dataset file"))
         try:
             self._file = h5py.File(self.path, "r")
-        except OSError as exc:
+        except (OSError, RuntimeError) as exc:
             raise UserError(f"{self.path}: not a readable HDF5 file ({_short(exc)})") from None
         try:
             self._validate()
@@ -441,7 +471,7 @@ class Dataset:
         except _Damaged as exc:
             self._file.close()
             raise UserError(f"{self.path}: damaged dvsot file ({exc})") from None
-        except (OSError, KeyError, ValueError, TypeError) as exc:
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py: RuntimeError for broken metadata
             self._file.close()
             raise UserError(f"{self.path}: damaged dvsot file ({_short(exc)})") from None
 
@@ -449,7 +479,7 @@ class Dataset:
         f = self._file
         if _decode_attr(f.attrs.get("format", "")) != FORMAT:
             raise UserError(f"{self.path}: not a dvsot dataset file (root attribute 'format' is not '{FORMAT}')")
-        version = int(f.attrs.get("format_version", -1))
+        version = _int_attr({k: _decode_attr(v) for k, v in f.attrs.items()}, "format_version", -(2**62))
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         _check_layout(f)
@@ -457,6 +487,9 @@ class Dataset:
         self.attrs: dict[str, Any] = {k: _decode_attr(v) for k, v in f.attrs.items()}
         self.width = _int_attr(self.attrs, "width", 1, _MAX_PIXELS)
         self.height = _int_attr(self.attrs, "height", 1, _MAX_PIXELS)
+        if self.width * self.height > validate.MAX_SENSOR_PIXELS:
+            raise _Damaged(f"root attributes 'width' x 'height' are {self.width}x{self.height}, more than the bound "
+                           f"of {validate.MAX_SENSOR_PIXELS} pixels")
         self.segment_us = _int_attr(self.attrs, "segment_us", 1)
         self.duration_us = _int_attr(self.attrs, "duration_us", 0)
         self.format_version = version
@@ -472,6 +505,7 @@ class Dataset:
             raise _Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
                            f"but /events/t has {self.num_events} rows")
         _check_duration(self.duration_us, self.segment_us, ev["ms_to_idx"].shape[0], f["segments/xywh"].shape[0])
+        _check_sizes(f)
         self._ms_to_idx = self._load("events/ms_to_idx")
         problem = _ms_to_idx_problem(self._ms_to_idx, self.num_events)
         if problem:
@@ -480,6 +514,14 @@ class Dataset:
         vis = self._load("segments/xywh_visible") if "segments/xywh_visible" in f else None
         self._seg_vis = None if vis is None else vis.astype(np.float32)
         self.num_segments = int(self._seg_box.shape[0])
+        for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
+            rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
+            problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
+            if problem:
+                raise _Damaged(f"/{name} {problem}")
+        problem = validate.digest_problem(self.attrs)
+        if problem:
+            raise _Damaged(problem)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
                         "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
@@ -512,7 +554,7 @@ class Dataset:
         """A whole small dataset (ms_to_idx, boxes, segments) read into memory; a failed read names it."""
         try:
             return self._file[name][()]
-        except (OSError, ValueError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
             raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({_short(exc)})") from None
 
     def _index_at(self, t_us: int) -> int:
@@ -535,7 +577,7 @@ class Dataset:
     def _read(self, column: str, i0: int, i1: int) -> np.ndarray:
         try:
             return self._columns[column][i0:i1]
-        except (OSError, ValueError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
             raise self._damaged(f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
                                 f"({_short(exc)})") from None
 
@@ -617,8 +659,10 @@ def open_dataset(path: str | os.PathLike) -> Dataset:
     return Dataset(path)
 
 
-def find_datasets(spec: str | os.PathLike | list, split: str | None = None, verify: bool = True) -> list[Path]:
-    """Dataset files named by a directory, a glob, a file or a list of those, optionally of one split; all checked."""
+def find_datasets(spec: str | os.PathLike | list, split: str | None = None, verify: bool = True,
+                  need_events: bool = False) -> list[Path]:
+    """Dataset files named by a directory, a glob, a file or a list of those, optionally of one split; all checked
+    (need_events: a file without events is an error, e.g. for training)."""
     specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
     paths: list[Path] = []
     for item in specs:
@@ -627,7 +671,7 @@ def find_datasets(spec: str | os.PathLike | list, split: str | None = None, veri
             found = sorted(p.glob("*.h5"))
         elif any(ch in str(item) for ch in "*?["):
             found = sorted(Path(x) for x in globmod.glob(str(item)))
-        elif p.is_file():
+        elif p.exists():  # a file, or a FIFO or device: Dataset says what it is
             found = [p]
         else:
             raise UserError(f"{item}: no such file or directory")
@@ -638,6 +682,8 @@ def find_datasets(spec: str | os.PathLike | list, split: str | None = None, veri
             if split is None or ds.split == split:
                 if verify:  # bench and train find their files here: a damaged one stops them before any output
                     ds.verify()
+                if need_events and ds.num_events == 0:
+                    raise UserError(f"{p}: the file holds no events (nothing to learn from)")
                 result.append(p)
     if not result:
         where = ", ".join(str(s) for s in specs)

@@ -17,6 +17,7 @@ import numpy as np
 
 from dvsot.events import EventBatch
 from dvsot.outputs import replacing
+from dvsot.validate import preview_problem
 
 GT_COLOUR = (40, 170, 40)  # RGB
 PALETTE = [(230, 120, 0), (150, 40, 200), (0, 150, 200), (200, 0, 80), (120, 90, 20), (110, 110, 110)]
@@ -85,6 +86,9 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
         legend = [("ground truth", GT_COLOUR)] + [(n, PALETTE[k % len(PALETTE)]) for k, n in enumerate(tracks)]
         frames = []
         stop = min(ds.num_segments, start + max_segments)
+        problem = preview_problem(ds.width, ds.height, max(0, stop - start))  # every frame is held until written
+        if problem:
+            raise ValueError(f"{ds.path}: {problem}")
         for seg in ds.segments(start, stop):
             img = event_frame(seg.events, ds.width, ds.height, background)
             draw_box(img, seg.box, GT_COLOUR)

@@ -228,10 +228,32 @@ def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
     if args.plots:
         names["iou_over_time.png"] = "--plots"
     for seq in args.video:
-        names[f"{seq}.gif"] = "--video"
+        names[video_name(seq)] = "--video"
     if sctn and not args.no_energy:
         names["energy.json"] = names["firing_rate.png"] = "--out (energy table)"
     return names
+
+
+VIDEO_SEGMENTS = 300  # frames of a --video preview, one per segment
+
+
+def video_name(sequence: str) -> str:
+    """The file in --out for `--video sequence`: the name made safe as a file name (no '/', '..', control chars)."""
+    from dvsot.names import file_stem
+
+    return file_stem(sequence) + ".gif"
+
+
+def check_video(sequence: str, path: Path) -> None:
+    """UserError now if the preview of a sequence would hold more frames in memory than dvsot.validate allows."""
+    from dvsot.dataset import Dataset
+    from dvsot.errors import UserError
+    from dvsot.validate import preview_problem
+
+    with Dataset(path) as ds:
+        problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
+    if problem:
+        raise UserError(f"--video {sequence}: {path}: {problem}")
 
 
 def check_outputs(out_dir: Path, names: dict[str, str], inputs: list) -> None:
@@ -275,6 +297,7 @@ def plan(args: argparse.Namespace) -> Plan:
     for seq in args.video:
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
+        check_video(seq, sequences[seq])
     check_outputs(out_dir, _output_names(args, sctn), files)
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, args.option)
@@ -331,7 +354,8 @@ def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: lis
         from dvsot.preview import write_preview
 
         chosen = {r.tracker: r.predictions for r in results if r.sequence == seq}
-        paths[f"gif:{seq}"] = write_preview(p.sequences[seq], p.out_dir / f"{seq}.gif", chosen)
+        paths[f"gif:{seq}"] = write_preview(p.sequences[seq], p.out_dir / video_name(seq), chosen,
+                                            max_segments=VIDEO_SEGMENTS)
     if energy is not None:
         from benchmarks.energy_table import plot_firing_rates
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import argparse
 
+PREVIEW_SEGMENTS = 200  # frames of a --preview GIF, one per segment
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot generate`."""
@@ -68,9 +70,20 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
         from dvsot.preview import write_preview
 
         gif = Path(out_path).with_suffix(".gif")
-        write_preview(out_path, gif, max_segments=200)
+        write_preview(out_path, gif, max_segments=PREVIEW_SEGMENTS)
         summary["preview"] = str(gif)
     return summary
+
+
+def _check_preview_size(path: str, cfg) -> None:
+    """UserError before rendering if the --preview of a scene would hold more frames in memory than allowed."""
+    from dvsot.errors import UserError
+    from dvsot.validate import preview_problem
+
+    segments = int(cfg.duration_s * 1e6) // int(round(cfg.segment_ms * 1000))
+    problem = preview_problem(cfg.sensor.width, cfg.sensor.height, min(PREVIEW_SEGMENTS, segments))
+    if problem:
+        raise UserError(f"{path}: --preview: {problem}")
 
 
 def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
@@ -87,13 +100,15 @@ def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
         out_dir = output_dir(args.out_dir or "out", "--out-dir")
         outs = [out_dir / f"{c.name}.h5" for c in configs]
     seen: dict = {}
-    for o, p in zip(outs, paths):
+    for o, p, c in zip(outs, paths, configs):
         if o.is_dir() or o.exists():
             output_file(o, f"the output of {p}", inputs)
         if o.resolve() in seen:
             raise UserError(f"{p}: scene name gives the same output {o} as {seen[o.resolve()]}; rename one")
         seen[o.resolve()] = p
         gif = o.with_suffix(".gif")
+        if args.preview:
+            _check_preview_size(p, c)
         if args.preview and (gif.is_dir() or gif == o):
             raise UserError(f"{gif}: --preview would write this path, " + ("a directory" if gif.is_dir() else
                                                                             "the dataset file itself"))
@@ -102,6 +117,17 @@ def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
     if not args.output:
         out_dir.mkdir(parents=True, exist_ok=True)
     return outs
+
+
+def _warn_nonsense(paths: list[str], configs: list) -> None:
+    """One stderr line per scene whose target is never in view, or always fills the frame (still rendered)."""
+    import sys
+
+    from dvsot.scene_checks import visibility_warnings
+
+    for path, cfg in zip(paths, configs):
+        for warning in visibility_warnings(cfg):
+            print(f"dvsot generate: warning: {path}: {warning}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -124,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     if args.variants is not None or args.scheduler or args.dry_run or args.resume:
         return _many(args, paths, overrides)
     configs = [load_scene(p, overrides) for p in paths]  # all bad input is reported before any rendering
+    _warn_nonsense(paths, configs)
     if args.output and len(paths) > 1:
         raise UserError("-o names one output file; use --out-dir for several scenes")
     if args.jobs < 1:

@@ -56,7 +56,9 @@ def summarise(path: str) -> dict:
 
 
 def _text(info: dict) -> str:
-    lines = [f"{info['file']}  ({info['name']}{', ' + info['split'] if info['split'] else ''})",
+    from dvsot.names import one_line
+
+    lines = [f"{info['file']}  ({one_line(info['name'])}{', ' + one_line(info['split']) if info['split'] else ''})",
              f"  resolution     {info['resolution'][0]}x{info['resolution'][1]}",
              f"  duration       {info['duration_s']:.3f} s",
              f"  events         {info['events']:,}  ({info['event_rate_per_s'] / 1e6:.3f} Mev/s"

@@ -64,11 +64,12 @@ def _check_flags(args: argparse.Namespace) -> None:
     import math
 
     from dvsot.errors import UserError
+    from dvsot.validate import MIN_SEGMENT_US
 
     if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
         raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
-    if args.segment_us <= 0:
-        raise UserError(f"--segment-us must be positive, got {args.segment_us}")
+    if args.segment_us < MIN_SEGMENT_US:
+        raise UserError(f"--segment-us must be at least {MIN_SEGMENT_US} (1 ms), got {args.segment_us}")
     if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
         raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
 
@@ -100,17 +101,21 @@ def _box_row(path: str, no: int, line: str) -> list[float]:
     return row
 
 
-def _read_boxes(path: str, t_origin_us: int):
+def _read_boxes(path: str, t_origin_us: int, width: int, height: int):
     """Box times (us, relative to the first frame) and x,y,w,h rows from the --boxes CSV; checked line by line."""
     import numpy as np
 
     from dvsot.errors import UserError
     from dvsot.frames import text_lines
+    from dvsot.validate import box_problem
 
     numbered = text_lines(path, "boxes as CSV t_s,x,y,w,h")
     if not numbered:
         raise UserError(f"{path}: no boxes (expected lines t_s,x,y,w,h)")
     rows = np.array([_box_row(path, no, ln) for no, ln in numbered], np.float64)
+    problem = box_problem(rows[:, 1:5], width, height, lambda i: f"the box on line {numbered[i][0]}")
+    if problem:
+        raise UserError(f"{path}: {problem}")
     t = np.rint(rows[:, 0] * 1e6).astype(np.int64) - t_origin_us
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
@@ -133,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
     from dvsot.events import EventSimulator
     from dvsot.frames import open_frames, read_timestamps
     from dvsot.outputs import output_file
+    from dvsot.validate import MAX_DURATION_S, MAX_SENSOR_PIXELS
 
     params = _event_params(args)
     _check_flags(args)
@@ -141,18 +147,27 @@ def run(args: argparse.Namespace) -> int:
         inputs += sorted(inputs[0].iterdir())
     output_file(args.output, "-o", inputs)
     source = open_frames(args.input, srgb=args.srgb)
+    if source.width * source.height > MAX_SENSOR_PIXELS:
+        raise UserError(f"{args.input}: frames of {source.width}x{source.height} px, more than the bound of "
+                        f"{MAX_SENSOR_PIXELS} pixels")
     if args.timestamps:
         t_us = read_timestamps(args.timestamps, source.count)
+        span, what = (int(t_us[-1]) - int(t_us[0])) / 1e6 if len(t_us) else 0.0, f"{args.timestamps}: timestamps"
     else:
         fps = args.fps if args.fps is not None else source.fps
         if not fps or not 0 < fps <= MAX_FPS:  # a video's own rate: None, or whatever its header says
             raise UserError(f"{args.input}: give --fps N (positive) or --timestamps FILE")
+        span = (source.count - 1) / fps  # before any array is made: a tiny rate would overflow microseconds
+        what = f"--fps {args.fps:g}: {source.count} frames" if args.fps is not None else f"{args.input}: its frames"
+    if span >= MAX_DURATION_S:  # ms_to_idx holds an entry per millisecond of the span
+        raise UserError(f"{what} span {span:g} s, more than the bound of {MAX_DURATION_S} s per dataset file")
+    if not args.timestamps:
         t_us = np.rint(np.arange(source.count) * 1e6 / fps).astype(np.int64)
     if source.count < 2:
         raise UserError(f"{args.input}: need at least two frames, found {source.count}")
     t0 = int(t_us[0])
     t_us = t_us - t0
-    boxes = _read_boxes(args.boxes, t0) if args.boxes else None
+    boxes = _read_boxes(args.boxes, t0, source.width, source.height) if args.boxes else None
 
     sim = EventSimulator(source.width, source.height, params, args.seed)
     attrs = {"name": Path(args.output).name.removesuffix(".h5"), "split": "", "source": str(args.input),

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = _train_config(args)
     if args.threads is not None and args.threads < 1:
         raise UserError(f"--threads must be >= 1, got {args.threads}")
-    files = find_datasets(args.data, split=None if args.split == "any" else args.split)
+    files = find_datasets(args.data, split=None if args.split == "any" else args.split, need_events=True)
     out = check_checkpoint_output(args.output, "-o", inputs=files)
     if args.threads:
         torch.set_num_threads(args.threads)
