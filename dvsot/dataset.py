@@ -50,6 +50,7 @@ import h5py
 import numpy as np
 
 from dvsot import validate
+from dvsot.background import OrderedWorker
 from dvsot.errors import UserError
 from dvsot.events import EventBatch
 
@@ -156,6 +157,7 @@ class DatasetWriter:
         self._box_t: list[np.ndarray] = []
         self._box_xywh: list[np.ndarray] = []
         self._box_vis: list[np.ndarray] = []
+        self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
         self._closed = False
 
     def __enter__(self) -> "DatasetWriter":
@@ -208,20 +210,28 @@ class DatasetWriter:
             self._flush()
 
     def _flush(self) -> None:
+        """Hand the buffered events to the writer thread (compression overlaps with the caller's work)."""
         if not self._buffer:
             return
         joined = EventBatch.concatenate(self._buffer)
         n0, n1 = self._count, self._count + len(joined)
-        ev = self._file["events"]
-        columns = {"x": joined.x.astype(np.uint16), "y": joined.y.astype(np.uint16),
-                   "t": joined.t.astype(np.int64), "p": joined.p.astype(np.uint8)}
+        columns = {"x": joined.x.astype(np.uint16, copy=False), "y": joined.y.astype(np.uint16, copy=False),
+                   "t": joined.t.astype(np.int64, copy=False), "p": joined.p.astype(np.uint8, copy=False)}
         if self._has_signal:
-            columns["signal"] = joined.signal.astype(np.uint8)
+            columns["signal"] = joined.signal.view(np.uint8) if joined.signal.dtype == bool else \
+                joined.signal.astype(np.uint8)
+        if self._io is None:
+            self._io = OrderedWorker(f"write {self.path.name}")
+        self._io.submit(self._write_columns, n0, n1, columns)
+        self._count = n1
+        self._buffer, self._buffered = [], 0
+
+    def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
+        """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close)."""
+        ev = self._file["events"]
         for name, values in columns.items():
             ev[name].resize((n1,))
             ev[name][n0:n1] = values
-        self._count = n1
-        self._buffer, self._buffered = [], 0
 
     def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None) -> None:
         """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal."""
@@ -240,6 +250,9 @@ class DatasetWriter:
             return self.path
         try:
             self._flush()
+            if self._io is not None:
+                self._io.wait()  # every event chunk is written (or its error raised here)
+                self._io.stop()
             box_t = np.concatenate(self._box_t) if self._box_t else np.empty(0, np.int64)
             box_xywh = np.concatenate(self._box_xywh) if self._box_xywh else np.empty((0, 4), np.float32)
             box_vis = np.concatenate(self._box_vis) if self._box_vis else np.empty((0, 4), np.float32)
@@ -300,6 +313,8 @@ class DatasetWriter:
     def abort(self) -> None:
         """Discard the temporary file; nothing at the target path is touched."""
         self._closed = True
+        if self._io is not None:
+            self._io.stop()  # the chunk being written finishes; the file is closed after it
         try:
             self._file.close()
         except Exception:

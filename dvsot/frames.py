@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")  # must be set before cv2 is imported
 # AV_LOG_QUIET: ffmpeg's own notes on a bad video ("moov atom not found") would precede our one-line error.
@@ -24,6 +25,7 @@ from typing import Iterator
 import cv2
 import numpy as np
 
+from dvsot.background import read_ahead
 from dvsot.errors import UserError
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
@@ -32,15 +34,29 @@ MAX_SECONDS = 1e9  # keeps timestamps in microseconds well inside int64
 _LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)  # Rec. 709, in OpenCV's B, G, R order
 
 
+_quiet_lock = threading.Lock()
+_quiet_depth = [0, 0]  # callers inside _quiet_opencv (from any thread), and the log level to restore
+
+
 @contextmanager
 def _quiet_opencv() -> Iterator[None]:
-    """OpenCV logs errors only inside: its decoder warnings would precede our one-line error."""
-    level = cv2.getLogLevel()
-    cv2.setLogLevel(2)  # LOG_LEVEL_ERROR
+    """OpenCV logs errors only inside: its decoder warnings would precede our one-line error.
+
+    The log level is process-wide and decoding threads overlap: the first to enter sets it, the last
+    to leave restores it.
+    """
+    with _quiet_lock:
+        if _quiet_depth[0] == 0:
+            _quiet_depth[1] = cv2.getLogLevel()
+            cv2.setLogLevel(2)  # LOG_LEVEL_ERROR
+        _quiet_depth[0] += 1
     try:
         yield
     finally:
-        cv2.setLogLevel(level)
+        with _quiet_lock:
+            _quiet_depth[0] -= 1
+            if _quiet_depth[0] == 0:
+                cv2.setLogLevel(_quiet_depth[1])
 
 
 def imread(path: Path) -> np.ndarray | None:
@@ -82,36 +98,44 @@ class FrameSource:
     fps: float | None
     srgb: bool = False
 
-    def frames(self) -> Iterator[np.ndarray]:
-        """Yield (height, width) float32 linear-luma frames in order."""
+    def frames(self, workers: int = 2) -> Iterator[np.ndarray]:
+        """Yield (height, width) float32 linear-luma frames in order, decoded up to a few frames ahead by threads."""
         if self.path.is_dir():
-            yield from self._images()
+            yield from read_ahead(self._image, _image_files(self.path), workers=max(1, workers),
+                                  ahead=2 * max(1, workers))
         elif self.path.suffix.lower() == ".npy":
             stack = np.load(self.path, mmap_mode="r")
             for i in range(stack.shape[0]):
                 yield np.asarray(stack[i], dtype=np.float32)
         else:
-            yield from self._video()
+            yield from self._video(ahead=workers > 0)
 
-    def _images(self) -> Iterator[np.ndarray]:
-        for p in _image_files(self.path):
-            img = imread(p)
-            if img is None:
-                raise UserError(f"{p}: cannot read image")
-            frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
-            if frame.shape != (self.height, self.width):
-                raise UserError(f"{p}: image is {frame.shape[1]}x{frame.shape[0]}, the first was {self.width}x{self.height}")
-            yield frame
+    def _image(self, p: Path) -> np.ndarray:
+        """One image file as a linear-luma frame (runs on a decoding thread: OpenCV releases the GIL)."""
+        img = imread(p)
+        if img is None:
+            raise UserError(f"{p}: cannot read image")
+        frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
+        if frame.shape != (self.height, self.width):
+            raise UserError(f"{p}: image is {frame.shape[1]}x{frame.shape[0]}, the first was {self.width}x{self.height}")
+        return frame
 
-    def _video(self) -> Iterator[np.ndarray]:
+    def _video(self, ahead: bool) -> Iterator[np.ndarray]:
         cap = cv2.VideoCapture(str(self.path))
+
+        def read(_: int) -> np.ndarray | None:  # one thread: the capture is read in order
+            ok, img = cap.read()
+            return to_linear_luma(img, self.srgb) if ok else None
+
+        frames = read_ahead(read, range(self.count), workers=1, ahead=4) if ahead else map(read, range(self.count))
         try:
-            for _ in range(self.count):
-                ok, img = cap.read()
-                if not ok:
+            for frame in frames:
+                if frame is None:
                     break
-                yield to_linear_luma(img, self.srgb)
+                yield frame
         finally:
+            if ahead:
+                frames.close()  # waits for the read-ahead thread before the capture is released
             cap.release()
 
 

@@ -15,6 +15,7 @@ from dvsot.dataset import DatasetWriter
 from dvsot.events import EventSimulator
 from dvsot.sampling import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.shapes import mesh_for, sample_points
+from dvsot.simulation import simulate_frames
 from dvsot.trajectory import pose_and_scale, pose_matrix, project
 
 
@@ -90,25 +91,30 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
         keep.mkdir(parents=True, exist_ok=True)
     render_s = 0.0
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
-    n_pos = 0
     with BlenderScene(cfg) as scene, DatasetWriter(out_path, W, H, int(round(cfg.segment_ms * 1000)), attrs) as w:
         bar = tqdm(total=len(times), unit="frame", disable=not progress, desc=cfg.name)
-        for i, t in enumerate(times):
-            r0 = time.perf_counter()
-            luma, amodal, visible = scene.render(float(t))
-            render_s += time.perf_counter() - r0
-            if i == 0:
-                first_s = render_s
-            if keep:
-                np.save(keep / f"{i:06d}.npy", luma)
-            batch = sim.step(luma, int(t_us[i]))
-            w.append_events(batch)
-            n_pos += int(np.count_nonzero(batch.p))
-            w.append_boxes(t_us[i], box_from_mask(amodal), box_from_mask(visible))
+
+        def renders():
+            """Luma of each sample in turn; its boxes go to the file as it is rendered."""
+            nonlocal render_s, first_s
+            for i, t in enumerate(times):
+                r0 = time.perf_counter()
+                luma, amodal, visible = scene.render(float(t))
+                render_s += time.perf_counter() - r0
+                if i == 0:
+                    first_s = render_s
+                if keep:
+                    np.save(keep / f"{i:06d}.npy", luma)
+                w.append_boxes(t_us[i], box_from_mask(amodal), box_from_mask(visible))
+                yield luma
+
+        def shown(done: int, events: int) -> None:
             bar.update(1)
-            bar.set_postfix_str(f"t={t:.3f}s events={w.num_events:,}", refresh=False)
+            bar.set_postfix_str(f"t={times[done - 1]:.3f}s events={events:,}", refresh=False)
+
+        counts = simulate_frames(renders(), t_us, sim, w, cfg.name, shown)
         bar.close()
-        n_events = w.num_events
+        n_events, n_pos = counts.events, counts.positive
         w.close(int(t_us[-1]) + 1)
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)

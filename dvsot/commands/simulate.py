@@ -139,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
     from dvsot.frames import open_frames, read_timestamps
     from dvsot.outputs import output_file
     from dvsot.validate import MAX_DURATION_S, MAX_SENSOR_PIXELS
+    from dvsot.simulation import simulate_frames
 
     params = _event_params(args)
     _check_flags(args)
@@ -174,24 +175,20 @@ def run(args: argparse.Namespace) -> int:
              "simulator": params.model_dump(), "seed": args.seed, "generator": "dvsot simulate",
              "versions": {"dvsot": __version__, "numpy": np.__version__}}
     start = time.perf_counter()
-    n_pos = 0
     with DatasetWriter(args.output, source.width, source.height, args.segment_us, attrs) as writer:
         bar = tqdm(total=source.count, unit="frame", disable=args.quiet, desc="simulate")
-        for i, frame in enumerate(source.frames()):
-            try:
-                batch = sim.step(frame, int(t_us[i]))
-            except UserError as exc:
-                raise UserError(f"{args.input}: frame {i}: {exc}") from None
-            writer.append_events(batch)
-            n_pos += int(np.count_nonzero(batch.p))
+
+        def progress(done: int, events: int) -> None:
             bar.update(1)
-            bar.set_postfix(events=writer.num_events, refresh=False)
+            bar.set_postfix(events=events, refresh=False)
+
+        counts = simulate_frames(source.frames(), t_us, sim, writer, str(args.input), progress)
         bar.close()
-        if i + 1 != source.count:
-            raise UserError(f"{args.input}: expected {source.count} frames, read {i + 1}")
+        if counts.frames != source.count:
+            raise UserError(f"{args.input}: expected {source.count} frames, read {counts.frames}")
         if boxes is not None:
             writer.append_boxes(boxes[0], boxes[1])
-        n_events = writer.num_events
+        n_events, n_pos = counts.events, counts.positive
         path = writer.close(int(t_us[-1]) + 1)
     wall = time.perf_counter() - start
     duration = (int(t_us[-1]) + 1) / 1e6
