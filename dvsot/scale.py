@@ -73,6 +73,7 @@ def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
 
 def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> dict:
     """Render one scene into its dataset file (in a worker): its summary, or {"error": one line} on any failure."""
+    t_task = time.perf_counter()
     worker = _worker_address()
     try:
         with _RENDER_LOCK:
@@ -82,7 +83,6 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             cfg = parse_scene(task.text, task.source, Path(task.base_dir), dict(task.overrides))
             if cfg.render.threads == 0 and host_workers is not None:
                 cfg.render.threads = _threads_for_this_worker(host_workers)
-            t0 = time.perf_counter()
             summary = generate(cfg, task.output, task.text, progress=False)
             if task.preview:
                 from dvsot.preview import write_preview
@@ -90,7 +90,7 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
                 gif = Path(task.output).with_suffix(".gif")
                 write_preview(task.output, gif, max_segments=200)
                 summary["preview"] = str(gif)
-            summary["task_s"] = round(time.perf_counter() - t0, 3)
+            summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
             summary["render_threads"] = cfg.render.threads
     except Exception as exc:  # returned, not raised: the head records it and retries (no traceback in worker logs)
         return {"error": one_line(exc), "worker": worker}
@@ -126,12 +126,14 @@ class Manifest:
 
     def __init__(self, path: Path, tasks: list[SceneTask]) -> None:
         self.path = path
+        self.timing: dict = {}  # seconds: cluster start, submit -> last result
         self.records = [{"name": t.name, **t.record, "file": str(Path(t.output)), "status": "pending",
                          "attempts": [], "error": None} for t in tasks]
 
     def write(self) -> None:
         with replacing(self.path) as tmp:
-            tmp.write_text(json.dumps({"format": "dvsot-manifest", "version": 1, "scenes": self.records}, indent=1)
+            tmp.write_text(json.dumps({"format": "dvsot-manifest", "version": 1, "timing": self.timing,
+                                       "scenes": self.records}, indent=1)
                            + "\n")
 
 
@@ -148,12 +150,17 @@ def run_scenes(tasks: list[SceneTask], manifest_path: Path, scheduler: str | Non
             todo.append(i)
     manifest.write()
     report = report or (lambda rec: None)
+    t0 = time.perf_counter()
     if todo and scheduler is None:
         _run_here(tasks, todo, manifest, retries, report)
     elif todo:
         kind, arg = parse_scheduler(scheduler)
         with _client(kind, arg) as client:
+            manifest.timing["start_s"] = round(time.perf_counter() - t0, 3)
+            t0 = time.perf_counter()
             _run_dask(client, tasks, todo, manifest, retries, report)
+    manifest.timing["run_s"] = round(time.perf_counter() - t0, 3)
+    manifest.write()
     return manifest
 
 
@@ -164,7 +171,8 @@ def _ok(outcome: dict | BaseException) -> bool:
 def _record(manifest: Manifest, i: int, outcome: dict | BaseException, final: bool) -> dict:
     rec = manifest.records[i]
     if _ok(outcome):
-        rec["attempts"].append({"worker": outcome.get("worker"), "error": None, "wall_s": outcome.get("wall_s")})
+        rec["attempts"].append({"worker": outcome.get("worker"), "error": None, "wall_s": outcome.get("wall_s"),
+                                "task_s": outcome.get("task_s"), "render_threads": outcome.get("render_threads")})
         rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"))
     else:
         err = outcome["error"] if isinstance(outcome, dict) else one_line(outcome)
@@ -198,7 +206,8 @@ class _client:
 
         if self.kind == "local":
             self.cluster = LocalCluster(n_workers=self.arg, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.WARNING)
+                                        dashboard_address=None,
+                                        silence_logs=logging.CRITICAL)  # failures reach the manifest, one line each
             self.client = Client(self.cluster)
         else:
             try:
