@@ -9,17 +9,41 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from dvsot.config import asset_paths, load_scene
+from dvsot.config import SceneConfig, asset_paths, load_scene, read_yaml
 from dvsot.errors import UserError
 from dvsot.outputs import output_dir, output_file
 from dvsot.scale import Manifest, SceneTask, run_scenes
-from dvsot.templates import draw_variants, read_template, validate_variant
+from dvsot.templates import draw_variants, is_template, read_template, validate_variant
 
 MANIFEST = "manifest.json"
 
 
+def load_plain_scene(path: str | Path, overrides: dict | None = None) -> SceneConfig:
+    """load_scene, with a template (distributions, counts, random walks) named as such: it needs --variants."""
+    try:
+        return load_scene(path, overrides)
+    except UserError:
+        try:
+            data, _ = read_yaml(Path(path).read_text(), str(path))
+        except (UserError, OSError, UnicodeDecodeError):
+            data = None
+        if is_template(data):
+            raise UserError(f"{path}: a scene template (it holds distributions, counted items or random walks): "
+                            "draw scenes from it with --variants N") from None
+        raise
+
+
+def _warn(cfg: SceneConfig, source: str, warn: Callable[[str], None] | None) -> None:
+    if warn is not None:
+        from dvsot.scene_checks import visibility_warnings
+
+        for w in visibility_warnings(cfg):
+            warn(f"{source}: {w}")
+
+
 def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrides: dict | None = None,
-                  preview: bool = False) -> tuple[list[SceneTask], list[Path]]:
+                  preview: bool = False, warn: Callable[[str], None] | None = None,
+                  ) -> tuple[list[SceneTask], list[Path]]:
     """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5."""
     if count < 1:
         raise UserError(f"--variants must be >= 1, got {count}")
@@ -28,6 +52,7 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
     tasks, inputs = [], [Path(template)]
     for v in draw_variants(tpl, count):
         cfg = validate_variant(tpl, v, dict(overrides or {}), note=f"(variant {v.index})")
+        _warn(cfg, f"{template} (variant {v.index})", warn)
         inputs += asset_paths(cfg)
         tasks.append(SceneTask(name=v.name, text=v.text(Path(template).name), source=f"{template} (variant {v.index})",
                                base_dir=str(tpl.base_dir), output=str(out / f"{v.name}.h5"),
@@ -37,12 +62,14 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
 
 
 def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = None,
-                preview: bool = False) -> tuple[list[SceneTask], list[Path]]:
+                preview: bool = False, warn: Callable[[str], None] | None = None,
+                ) -> tuple[list[SceneTask], list[Path]]:
     """Validate scene files; (tasks, input files) with outputs <out_dir>/<scene name>.h5."""
     out = Path(out_dir).resolve()
     tasks, inputs = [], []
     for p in paths:
-        cfg = load_scene(p, dict(overrides or {}))
+        cfg = load_plain_scene(p, dict(overrides or {}))
+        _warn(cfg, str(p), warn)
         inputs += [Path(p), *asset_paths(cfg)]
         tasks.append(SceneTask(name=cfg.name, text=Path(p).read_text(), source=str(p),
                                base_dir=str(Path(p).parent.resolve()), output=str(out / f"{cfg.name}.h5"),

@@ -83,6 +83,9 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             cfg = parse_scene(task.text, task.source, Path(task.base_dir), dict(task.overrides))
             if cfg.render.threads == 0 and host_workers is not None:
                 cfg.render.threads = _threads_for_this_worker(host_workers)
+            from dvsot.scene_checks import visibility_warnings
+
+            warnings = visibility_warnings(cfg)  # here, not at the head: ~0.1 s a scene
             summary = generate(cfg, task.output, task.text, progress=False)
             if task.preview:
                 from dvsot.preview import write_preview
@@ -92,6 +95,7 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
                 summary["preview"] = str(gif)
             summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
             summary["render_threads"] = cfg.render.threads
+            summary["warnings"] = warnings
     except Exception as exc:  # returned, not raised: the head records it and retries (no traceback in worker logs)
         return {"error": one_line(exc), "worker": worker}
     summary["worker"] = worker
@@ -173,7 +177,8 @@ def _record(manifest: Manifest, i: int, outcome: dict | BaseException, final: bo
     if _ok(outcome):
         rec["attempts"].append({"worker": outcome.get("worker"), "error": None, "wall_s": outcome.get("wall_s"),
                                 "task_s": outcome.get("task_s"), "render_threads": outcome.get("render_threads")})
-        rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"))
+        rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"),
+                   warnings=outcome.get("warnings") or [])
     else:
         err = outcome["error"] if isinstance(outcome, dict) else one_line(outcome)
         worker = outcome["worker"] if isinstance(outcome, dict) else None

@@ -133,3 +133,10 @@ def test_bad_distribution_is_one_line_with_file_line_and_field(tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{path}{words}" in err[0], err
     assert not out.exists()
+
+
+def test_a_template_without_variants_says_so(tmp_path, capsys):
+    path = write(tmp_path)
+    assert main(["generate", str(path), "-o", str(tmp_path / "x.h5")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{path}: a scene template" in err[0] and "--variants N" in err[0], err

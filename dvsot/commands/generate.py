@@ -137,7 +137,6 @@ def run(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
-    from dvsot.config import load_scene
     from dvsot.errors import UserError
 
     paths: list[str] = []
@@ -149,7 +148,9 @@ def run(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     if args.variants is not None or args.scheduler or args.dry_run or args.resume:
         return _many(args, paths, overrides)
-    configs = [load_scene(p, overrides) for p in paths]  # all bad input is reported before any rendering
+    from dvsot.batch import load_plain_scene
+
+    configs = [load_plain_scene(p, overrides) for p in paths]  # all bad input is reported before any rendering
     _warn_nonsense(paths, configs)
     if args.output and len(paths) > 1:
         raise UserError("-o names one output file; use --out-dir for several scenes")
@@ -183,12 +184,18 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     if args.output or args.keep_frames:
         raise UserError("--variants, --scheduler, --dry-run and --resume write <name>.h5 files and a manifest into "
                         "--out-dir; -o and --keep-frames do not apply")
+
+    def warn(text: str) -> None:
+        print(f"dvsot generate: warning: {text}", file=sys.stderr)
+
     if args.variants is not None:
         if len(paths) != 1:
             raise UserError(f"--variants draws from one template file, got {len(paths)}")
-        tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview)
+        # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
+        tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview,
+                                      warn if args.dry_run else None)
     else:
-        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview)
+        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview, warn)
     if args.dry_run:
         for t in tasks:
             print(f"# ---- {t.name}: {t.output}\n{t.text}")
@@ -204,6 +211,9 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
             where = f" on {tried['worker']}" if tried.get("worker") else ""
             print(f"{rec['name']}: {rec['status']}{where}" + (f": {rec['error']}" if rec["error"] else ""),
                   file=sys.stderr, flush=True)
+        if rec.get("warnings") and rec.get("variant") is not None:
+            for w in rec["warnings"]:
+                warn(f"{rec['name']}: {w}")
 
     manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report)
     print(summary_line(manifest), file=sys.stderr)
