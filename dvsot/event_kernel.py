@@ -39,7 +39,9 @@ def _levels(l1, l0, base, off, cp, cn):
 
 @numba.njit(cache=True, nogil=True)
 def interval_events(L1, last, base, off, ref, gate, cp, cn, last_event, refractory_us, t0, t1, width, scratch):
-    """Crossings of every pixel between samples last (t0) and L1 (t1): x, y, t (us), p in time order.
+    """Crossings of every pixel between samples last (t0) and L1 (t1): finite, then x, y, t (us), p in time order.
+
+    finite is False (and nothing is changed) if L1 holds NaN or an infinity.
 
     L1, last and base are log intensities (float64, one per pixel); off is the reference minus base and
     ref = base + off (updated in place, with last_event in us); cp and cn the per-pixel thresholds, gate
@@ -47,9 +49,13 @@ def interval_events(L1, last, base, off, ref, gate, cp, cn, last_event, refracto
     """
     # pass 1 reads 20 bytes a pixel: one that has not moved a threshold from its reference cannot fire
     n_cand = 0
+    finite = True
     for i in range(L1.shape[0]):  # branch-free: the store always happens, the count moves on candidates
         scratch[n_cand] = i
         n_cand += abs(L1[i] - ref[i]) >= gate[i]
+        finite &= abs(L1[i]) < np.inf  # False for NaN too
+    if not finite:
+        return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)
     bound = 0  # crossings before the refractory test: room for every event
     for j in range(n_cand):
         i = scratch[j]
@@ -81,7 +87,7 @@ def interval_events(L1, last, base, off, ref, gate, cp, cn, last_event, refracto
             code[ne] = 2 * i + (1 if rising else 0)
             trel[ne] = np.int64(np.rint(dt))
             ne += 1
-    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+    return True, *_time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -34,6 +34,7 @@ already in time order.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Literal
 
@@ -131,8 +132,13 @@ class EventSimulator:
         self._off = np.zeros(n, np.float64)  # reference level minus base (a sum of whole thresholds)
         self._ref = np.zeros(n, np.float64)  # base + off: the kernel's quick test of which pixels may fire
         self._last = np.zeros(n, np.float64)  # L at the previous sample
+        self._last_is_ours = True  # False while _last is a caller's frame (step with copy=False)
         self._last_event = np.full(n, -np.inf)  # time of the last emitted event, float microseconds
         self._t_prev: int | None = None
+        # numba's import and the kernel's load from its cache take a few tenths of a second: done on a
+        # thread (much of it outside the GIL) while the caller opens files and decodes the first frames
+        self._warm = threading.Thread(target=_load_kernel, name="load event kernel", daemon=True)
+        self._warm.start()
         self._buf = np.empty(n, np.float64)
 
     def _draw_thresholds(self) -> tuple[np.ndarray | float, np.ndarray | float]:
@@ -157,33 +163,31 @@ class EventSimulator:
         """Current per-pixel C+ and C- as (height, width) arrays (log intensity)."""
         return self._cp_px.reshape(self.height, self.width), self._cn_px.reshape(self.height, self.width)
 
-    def _log_frame(self, frame: np.ndarray, is_log: bool) -> np.ndarray:
+    def _log_frame(self, frame: np.ndarray, is_log: bool, copy: bool) -> np.ndarray:
+        """The frame as flat float64 log intensity: in self._buf, or the frame itself (is_log, float64, copy=False)."""
         a = np.asarray(frame)
         if a.shape != (self.height, self.width):
             raise UserError(f"frame has shape {a.shape}, expected ({self.height}, {self.width})")
         if a.dtype.kind not in "fiu":
             raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
-        out = self._buf
-        if is_log:
-            np.copyto(out, a.reshape(-1), casting="unsafe")
-            if not np.isfinite(out.sum()):
-                raise UserError("frame contains NaN or infinite values")
-            return out
-        # checks on the frame as given (float32 from the frame readers: half the bytes of float64)
-        lo, hi = a.min(), a.max()  # NaN propagates into both
-        if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise UserError("frame contains NaN or infinite values")
-        if lo < 0:
-            raise UserError("frame contains negative intensities")
-        np.add(a.reshape(-1), self.params.log_eps, out=out, dtype=np.float64, casting="unsafe")
-        np.log(out, out=out)
-        return out
+        if not is_log:
+            return log_intensity(a, self.params.log_eps, self._buf)
+        if not copy and a.dtype == np.float64 and a.flags.c_contiguous:
+            return a.reshape(-1)
+        np.copyto(self._buf, a.reshape(-1), casting="unsafe")
+        return self._buf  # log frames are checked for NaN and inf by the kernel (the first one below)
 
-    def step(self, frame: np.ndarray, t_us: int, is_log: bool = False) -> EventBatch:
-        """Events (time-sorted) between the previous frame and this one, at t_us microseconds."""
+    def step(self, frame: np.ndarray, t_us: int, is_log: bool = False, copy: bool = True) -> EventBatch:
+        """Events (time-sorted) between the previous frame and this one, at t_us microseconds.
+
+        With is_log=True and copy=False a float64 frame is kept, not copied, until the next step: the
+        caller must not change it in between (dvsot.simulate_frames hands over fresh frames).
+        """
         t_us = int(t_us)
-        L1 = self._log_frame(frame, is_log)
+        L1 = self._log_frame(frame, is_log, copy)
         if self._t_prev is None:
+            if is_log and not np.isfinite(L1.sum()):
+                raise UserError("frame contains NaN or infinite values")
             self._base[:] = L1
             self._ref[:] = L1
             self._last[:] = L1
@@ -195,15 +199,30 @@ class EventSimulator:
         p = self.params
         if p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0):
             self._set_thresholds(*self._draw_thresholds())
-        from dvsot.event_kernel import interval_events  # numba: imported when the first events are due
+        self._warm.join()
+        from dvsot.event_kernel import interval_events
 
-        x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate, self._cp_px,
-                                       self._cn_px, self._last_event, float(p.refractory_us), t0, t1, self.width, self._scratch)
+        finite, x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate,
+                                               self._cp_px, self._cn_px, self._last_event, float(p.refractory_us),
+                                               t0, t1, self.width, self._scratch)
+        if not finite:  # found before the kernel changed anything
+            raise UserError("frame contains NaN or infinite values")
         signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
         noise = self._noise(t0, t1)
-        self._last, self._buf = L1, self._last
+        self._keep_last(L1)
         self._t_prev = t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+
+    def _keep_last(self, L1: np.ndarray) -> None:
+        """L1 becomes the previous sample; the simulator's own buffers are reused, a caller's array never written."""
+        if L1 is self._buf:
+            if self._last_is_ours:
+                self._last, self._buf = L1, self._last
+            else:
+                self._last, self._buf = L1, np.empty_like(L1)
+            self._last_is_ours = True
+        else:
+            self._last, self._last_is_ours = L1, False
 
     def _noise(self, t0: int, t1: int) -> tuple[np.ndarray, ...]:
         """Shot-noise and leak events (pixel index, float us time, polarity) in (t0, t1]."""
@@ -221,6 +240,31 @@ class EventSimulator:
         if not parts:
             return _empty_crossings()
         return tuple(np.concatenate(col) for col in zip(*parts))
+
+
+def _load_kernel() -> None:
+    """Import the compiled kernel and run it once on one pixel (loads its machine code from numba's cache)."""
+    try:
+        from dvsot.event_kernel import interval_events
+
+        one = np.zeros(1)
+        interval_events(one, one, one, one.copy(), one.copy(), np.ones(1, np.float32), one + 1, one + 1, one - np.inf,
+                        0.0, 0, 1, 1, np.empty(1, np.int32))
+    except Exception:  # the same import in step() raises it where it can be reported
+        pass
+
+
+def log_intensity(frame: np.ndarray, log_eps: float, out: np.ndarray | None = None) -> np.ndarray:
+    """L = log(I + log_eps) of a linear-intensity frame, flattened to float64; NaN, inf or I < 0 raise UserError."""
+    a = np.asarray(frame)
+    lo, hi = a.min(), a.max()  # checked on the frame as given (float32 from the readers: half of float64's bytes)
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # NaN propagates into both
+        raise UserError("frame contains NaN or infinite values")
+    if lo < 0:
+        raise UserError("frame contains negative intensities")
+    out = np.empty(a.size, np.float64) if out is None else out
+    np.add(a.reshape(-1), log_eps, out=out, dtype=np.float64, casting="unsafe")
+    return np.log(out, out=out)
 
 
 def _empty_crossings() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -35,7 +35,7 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
         if i >= len(t_us):
             raise UserError(f"{source}: more frames than the {len(t_us)} timestamps")
         try:
-            batch = sim.step(frame, int(t_us[i]), is_log=is_log)
+            batch = sim.step(frame, int(t_us[i]), is_log=is_log, copy=False)  # frames are ours to keep
         except UserError as exc:
             raise UserError(f"{source}: frame {i}: {exc}") from None
         writer.append_events(batch)

@@ -13,7 +13,7 @@ import dvsot
 from dvsot.background import OrderedWorker, read_ahead
 from dvsot.dataset import DatasetWriter, open_dataset
 from dvsot.errors import UserError
-from dvsot.events import EventParams, EventSimulator
+from dvsot.events import EventParams, EventSimulator, log_intensity
 from dvsot.frames import open_frames
 
 
@@ -69,6 +69,16 @@ def test_threaded_decoding_gives_the_frames_of_sequential_decoding_and_names_a_b
     src = open_frames(tmp_path / "f")
     threaded, plain = list(src.frames(workers=3)), list(src.frames(workers=0))
     assert len(threaded) == 12 and all(np.array_equal(a, b) for a, b in zip(threaded, plain))
+    # log frames (8-bit: a table lookup on the decoding thread) hold exactly what the simulator computes
+    logs = list(src.log_frames(1e-3))
+    assert all(np.array_equal(a, log_intensity(b, 1e-3).reshape(b.shape)) for a, b in zip(logs, plain))
+    for name, img in (("deep", np.arange(64 * 48, dtype=np.uint16).reshape(48, 64) * 21),
+                      ("colour", np.random.default_rng(1).integers(0, 256, (48, 64, 3), np.uint8))):
+        (tmp_path / name).mkdir()
+        cv2.imwrite(str(tmp_path / name / "0.png"), img)
+        one = open_frames(tmp_path / name)
+        (linear,), (logged,) = list(one.frames()), list(one.log_frames(1e-3))
+        assert np.array_equal(logged, log_intensity(linear, 1e-3).reshape(linear.shape)), name
     (tmp_path / "f" / "0005.png").write_bytes(b"not a png")
     with pytest.raises(UserError, match="0005.png: cannot read image"):
         list(open_frames(tmp_path / "f").frames())

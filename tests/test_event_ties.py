@@ -156,3 +156,16 @@ def test_kernel_equals_a_per_pixel_reference_loop_on_random_input(case):
     repeat = EventBatch.concatenate([again.step(f, t) for f, t in zip(frames, times)])
     for col in ("x", "y", "t", "p", "signal"):
         assert getattr(repeat, col).tobytes() == getattr(got, col).tobytes()
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_log_frames_with_nan_or_inf_are_refused_before_anything_changes(bad):
+    sim = EventSimulator(3, 2, EventParams())
+    sim.step(np.zeros((2, 3)), 0, is_log=True)
+    frame = np.full((2, 3), 1.0)
+    frame[1, 2] = bad
+    with pytest.raises(Exception, match="NaN or infinite"):
+        sim.step(frame, 1_000, is_log=True, copy=False)
+    assert len(sim.step(np.full((2, 3), 1.0), 1_000, is_log=True)) == 6 * 5  # levels 0.2 .. 1.0, state untouched
+    with pytest.raises(Exception, match="NaN or infinite"):
+        EventSimulator(3, 2).step(np.full((2, 3), bad), 0, is_log=True)

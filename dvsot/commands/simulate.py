@@ -182,7 +182,9 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
             bar.set_postfix(events=events, refresh=False)
 
-        counts = simulate_frames(source.frames(), t_us, sim, writer, str(args.input), progress)
+        # log intensities computed on the decoding threads; the simulator takes them as they are
+        counts = simulate_frames(source.log_frames(params.log_eps), t_us, sim, writer, str(args.input), progress,
+                                 is_log=True)
         bar.close()
         if counts.frames != source.count:
             raise UserError(f"{args.input}: expected {source.count} frames, read {counts.frames}")
