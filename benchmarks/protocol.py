@@ -11,6 +11,10 @@ Which segments count (written here once, used for every tracker):
    the segment after each failure. Initialisation segments are given, not tracked: they do not count.
 4. Every other segment counts: the tracker predicts a box; IoU with the ground truth; a failure when
    IoU < 0.5, which triggers re-initialisation on the next segment.
+5. A recording's ground truth exists only at its annotations (`Dataset.annotated`): a segment without
+   an annotation matched to it (dvsot.boxes.match_annotations) is tracked (the tracker predicts on it)
+   but neither scored nor able to fail; rules 2-4 apply to the matched segments, so initialisation and
+   re-initialisation wait for the next matched segment with a box. A rendered file matches every segment.
 
 Speed is tracker time only (init + update calls), not reading the file.
 """
@@ -65,6 +69,7 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
     name = tracker_name or getattr(tracker, "name", type(tracker).__name__)
     n = dataset.num_segments if max_segments is None else min(max_segments, dataset.num_segments)
     gt = dataset.segment_boxes()[:n]
+    scored = dataset.segment_scored()[:n]
     ious = np.full(n, np.nan)
     preds = np.full((n, 4), np.nan, np.float32)
     inits: list[int] = []
@@ -75,6 +80,13 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
         for seg in dataset.segments(0, n):
             i = seg.index
             box = gt[i]
+            if not scored[i]:  # rule 5: between annotations the tracker runs on, unscored
+                if not need_init:
+                    start = time.perf_counter()
+                    preds[i] = np.asarray(tracker.update(seg), dtype=np.float32).reshape(4)
+                    spent += time.perf_counter() - start
+                    tracked += 1
+                continue
             if np.isnan(box).any() or box[2] < min_box_px or box[3] < min_box_px:
                 need_init = True
                 continue

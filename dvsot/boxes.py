@@ -70,3 +70,24 @@ def clip_box(xywh: np.ndarray, width: int, height: int) -> np.ndarray:
     empty = ~((x1 > x0) & (y1 > y0))  # also True for NaN input
     out[empty] = np.nan
     return out
+
+
+def match_annotations(t_annotations: np.ndarray, segment_us: int, num_segments: int) -> np.ndarray:
+    """Per segment, the row of the annotation it is scored against, or -1: the nearest one within segment_us / 2.
+
+    Segment i ends at (i + 1) * segment_us (microseconds). An annotation at time t belongs to the segment
+    whose end is nearest to it (a tie goes to the later end), if that end lies within half a segment;
+    when two annotations land on one segment the nearer one wins (the earlier on a tie). Nothing is
+    interpolated: a matched segment's ground truth is that annotation's box as written.
+    """
+    t = np.asarray(t_annotations, np.int64)
+    seg = (2 * t + segment_us) // (2 * segment_us) - 1  # round(t / segment_us) - 1, ties to the later end
+    dist = np.abs((seg + 1) * segment_us - t)
+    ok = (seg >= 0) & (seg < num_segments) & (2 * dist <= segment_us)
+    rows = np.flatnonzero(ok)
+    # nearest first, then earliest: the first row written for each segment after this sort wins
+    order = rows[np.lexsort((rows, dist[rows]))]
+    out = np.full(num_segments, -1, np.int64)
+    segs, first = np.unique(seg[order], return_index=True)
+    out[segs] = order[first]
+    return out

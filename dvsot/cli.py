@@ -16,6 +16,8 @@ COMMANDS: dict[str, str] = {
     "info": "dvsot.commands.info",
     "train": "dvsot.commands.train",
     "bench": "dvsot.commands.bench",
+    "export": "dvsot.commands.export",
+    "import": "dvsot.commands.import_",
 }
 
 

@@ -13,6 +13,7 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md and DESIGN.md):
     /segments/t            i8  (M,) end time of each segment, microseconds
     /segments/xywh         f4  (M, 4) ground truth per segment, at the segment's end time
     /segments/xywh_visible f4  (M, 4) visible-part ground truth per segment
+    /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
     /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
     /t_offset              i8  scalar, microseconds added to /events/t to get the recording's own clock
                                (0 for synthetic data)
@@ -124,7 +125,7 @@ class DatasetWriter:
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
-                 checksum: bool = True, t_offset_us: int = 0) -> None:
+                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
         if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
             raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
                              f"all, got {width}x{height}")
@@ -141,6 +142,9 @@ class DatasetWriter:
         self._compression = compression
         self._filter = COMPRESSIONS[compression]
         self.t_offset_us = int(t_offset_us)  # the recording's clock minus /events/t, microseconds
+        # annotated: boxes are annotations at their own times (a recording), scored only where one matches a
+        # segment (dvsot.boxes.match_annotations), never interpolated; else a rendered track, interpolated
+        self.annotated = bool(annotated)
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
         ev = self._file.create_group("events")
@@ -284,7 +288,14 @@ class DatasetWriter:
             g.create_dataset("xywh_visible", data=box_vis, maxshape=(None, 4), **ck)
             n_seg = duration_us // self.segment_us
             seg_t = (np.arange(n_seg, dtype=np.int64) + 1) * self.segment_us
-            if len(box_t):
+            if self.annotated:
+                from dvsot.boxes import match_annotations
+
+                match = match_annotations(box_t, self.segment_us, n_seg)
+                nan = np.full((1, 4), np.nan, np.float32)
+                seg_box = np.where((match >= 0)[:, None], np.concatenate([box_xywh, nan])[match], nan)
+                seg_vis = np.where((match >= 0)[:, None], np.concatenate([box_vis, nan])[match], nan)
+            elif len(box_t):
                 seg_box = _interpolate_boxes(box_t, box_xywh, seg_t).astype(np.float32)
                 seg_vis = _interpolate_boxes(box_t, box_vis, seg_t).astype(np.float32)
             else:
@@ -294,10 +305,13 @@ class DatasetWriter:
             s.create_dataset("t", data=seg_t, **ck)
             s.create_dataset("xywh", data=seg_box.reshape(-1, 4), **ck)
             s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
+            if self.annotated:
+                s.create_dataset("annotation", data=match, **ck)
             attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
-                         segment_us=self.segment_us, duration_us=duration_us, num_events=self._count)
+                         segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                         ground_truth="annotations" if self.annotated else "rendered")
             for key, value in attrs.items():
                 f.attrs[key] = _encode_attr(value)
             # over the values as a reader decodes them, so both sides hash the same thing
@@ -328,13 +342,14 @@ _LAYOUT: dict[str, tuple[str, int]] = {
     "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
     "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
     "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
+    "segments/annotation": ("i", 1),
 }
 _MAX_PIXELS = 1 << 16  # x and y are stored as u2
 _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"}
 # Datasets that must have as many rows as the first one of their group.
 _SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal"),
               ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
-              ("segments/xywh", "segments/t", "segments/xywh_visible"))
+              ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation"))
 
 
 class _Damaged(Exception):
@@ -529,6 +544,12 @@ class Dataset:
         vis = self._load("segments/xywh_visible") if "segments/xywh_visible" in f else None
         self._seg_vis = None if vis is None else vis.astype(np.float32)
         self.num_segments = int(self._seg_box.shape[0])
+        # recordings: the /boxes row each segment is scored against (-1: none), dvsot.boxes.match_annotations
+        self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
+        n_boxes = f["boxes/t"].shape[0]
+        if self._seg_ann is not None and len(self._seg_ann) and not (
+                -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
+            raise _Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
             problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
@@ -659,8 +680,23 @@ class Dataset:
         """Ground truth of every segment, (num_segments, 4) xywh pixels, NaN = absent."""
         return self._seg_box.copy()
 
+    @property
+    def annotated(self) -> bool:
+        """True for a recording whose boxes are annotations at their own times (scored only where matched)."""
+        return self._seg_ann is not None
+
+    def segment_scored(self) -> np.ndarray:
+        """Per segment, whether its ground truth may be scored: every segment of a rendered file, matched ones of a recording."""
+        if self._seg_ann is None:
+            return np.ones(self.num_segments, bool)
+        return self._seg_ann >= 0
+
+    def segment_annotations(self) -> np.ndarray | None:
+        """Per segment, the /boxes row of its annotation (-1: none), or None for a rendered file."""
+        return None if self._seg_ann is None else self._seg_ann.copy()
+
     def boxes(self) -> BoxTrack:
-        """The box track at every rendered sample: t (microseconds), xywh and xywh_visible (pixels)."""
+        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels)."""
         return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
 
 
