@@ -31,19 +31,30 @@ def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: i
     es = step[keep]
     if ex.size == 0:
         return out
-    x0, y0, w, h = (boxes[:, i:i + 1] for i in range(4))
-    inside = (ex >= x0) & (ex < x0 + w) & (ey >= y0) & (ey < y0 + h)  # (N, E)
+    x0, x1, y0, y1, cx, cy, scale = box_canvas(boxes, size).T[:, :, None]
+    inside = (ex >= x0) & (ex < x1) & (ey >= y0) & (ey < y1)  # (N, E)
     bi, ei = np.nonzero(inside)
     if bi.size == 0:
         return out
-    scale = np.minimum(1.0, size / np.maximum(boxes[:, 2], boxes[:, 3]))
-    cx, cy = boxes[:, 0] + boxes[:, 2] / 2, boxes[:, 1] + boxes[:, 3] / 2
-    u = np.floor((ex[ei] - cx[bi]) * scale[bi] + size / 2).astype(np.int64)
-    v = np.floor((ey[ei] - cy[bi]) * scale[bi] + size / 2).astype(np.int64)
+    cx, cy, scale = cx[:, 0], cy[:, 0], scale[:, 0]
+    u = np.floor((ex[ei] - cx[bi]) * scale[bi] + np.float32(size / 2)).astype(np.int64)
+    v = np.floor((ey[ei] - cy[bi]) * scale[bi] + np.float32(size / 2)).astype(np.int64)
     ok = (u >= 0) & (u < size) & (v >= 0) & (v < size)
     flat = (((bi[ok] * steps + es[ei][ok]) * 2 + ep[ei][ok]) * size + v[ok]) * size + u[ok]
     out.view(-1).index_fill_(0, torch.from_numpy(flat), 1.0)  # repeats set the same 1
     return out
+
+
+def box_canvas(boxes_xywh: np.ndarray, size: int = 107) -> np.ndarray:
+    """Per box (N, 7) float32: left, right, top, bottom edge and centre x, y (pixels), canvas scale (canvas px
+    per px). An event (pixel centre ex, ey) is inside when left <= ex < right and top <= ey < bottom, and lands
+    on canvas pixel floor((ex - centre) * scale + size / 2); every step rounds to float32 (sctn.sparse_eval
+    repeats this arithmetic)."""
+    boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
+    scale = np.minimum(np.float32(1.0), np.float32(size) / np.maximum(boxes[:, 2], boxes[:, 3]))
+    half = np.float32(2.0)
+    return np.stack([boxes[:, 0], boxes[:, 0] + boxes[:, 2], boxes[:, 1], boxes[:, 1] + boxes[:, 3],
+                     boxes[:, 0] + boxes[:, 2] / half, boxes[:, 1] + boxes[:, 3] / half, scale], axis=1)
 
 
 def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale: float, size_hw: tuple[int, int],

@@ -26,9 +26,10 @@ import numpy as np
 import torch
 
 from dvsot.events import EventBatch
-from sctn.encoding import encode_boxes, encode_search
+from sctn.encoding import encode_search
 from sctn.network import SCTN, check_crop
 from sctn.samples import TRACK, propose
+from sctn.sparse_eval import per_candidate_voltages
 from sctn.train import finetune
 
 
@@ -82,8 +83,8 @@ class SCTNTracker:
         cfg = self.model.cfg
         with torch.no_grad():
             if not self.fast:
-                v = torch.cat([self.model(encode_boxes(events, t0_us, boxes[i:i + 64], cfg.input_size, cfg.steps,
-                                                       cfg.step_us)) for i in range(0, len(boxes), 64)])
+                # event-driven, equal to the dense evaluation; the dense one for a model where it would not be
+                v, self.candidate_path = per_candidate_voltages(self.model, events, t0_us, boxes)
                 return v[:, :, 1].max(dim=1).values.numpy()
             region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field(),
                                                     cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)

@@ -3,6 +3,14 @@ its synaptic operations; print JSON.
 
     python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50] [--repeat 3]
         [--fast-only]
+    python -m benchmarks.perf.bench_tracking --sequences FILE.h5 [FILE.h5 ...] [--checkpoint CKPT] [--drop-biases]
+        [--segments 50]
+
+--sequences times, per file on one thread, the paper's per-candidate evaluation twice (the dense path:
+encode_boxes and the whole network per candidate; the event-driven path, sctn/sparse_eval.py, which
+SCTNTracker uses when it is exact) and the fast mode, and checks that both per-candidate runs track
+the same boxes. --drop-biases evaluates the checkpoint's weights without its biases and tail steps (a
+stand-in for a paper-preset checkpoint, for timing).
 
 Without --data a synthetic 160x120 sequence (a textured square, made in numpy) is used. Timing is
 tracker time per segment (scoring the candidates), fine-tuning excluded; one torch thread per
@@ -23,11 +31,44 @@ import numpy as np
 import torch
 
 
+def dense_scoring_tracker():
+    """SCTNTracker whose per-candidate scores come from the dense path (the code before the event-driven one)."""
+    from sctn.sparse_eval import dense_candidate_voltages
+    from sctn.tracker import SCTNTracker
+
+    class DenseTracker(SCTNTracker):
+        def score(self, events, t0_us, boxes):
+            if self.fast:
+                return super().score(events, t0_us, boxes)
+            self.candidate_path = "dense"
+            return dense_candidate_voltages(self.model, events, t0_us, boxes)[:, :, 1].max(dim=1).values.numpy()
+
+    return DenseTracker
+
+
+def bias_free(model):
+    """A copy of an SCTN with its weights and time constants, no biases and no tail steps."""
+    from sctn.network import SCTN
+
+    update = {"tail_steps": 0}
+    if "bias" in type(model.cfg).model_fields:
+        update["bias"] = False
+    net = SCTN(model.cfg.model_copy(update=update))
+    net.load_state_dict({k: v for k, v in model.state_dict().items() if not k.endswith(".bias")}, strict=False)
+    with torch.no_grad():
+        for layer in list(net.convs) + list(net.fcs):
+            if layer.bias is not None:
+                layer.bias.zero_()
+    return net.eval()
+
+
 def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "bilinear",
-              repeat: int = 1) -> dict:
+              repeat: int = 1, tracker_cls=None, boxes_out: list | None = None) -> dict:
     from dvsot.boxes import iou_xywh
     from dvsot.dataset import Dataset
     from sctn.tracker import SCTNTracker
+
+    tracker_cls = tracker_cls or SCTNTracker
 
     torch.set_num_threads(threads)
     with Dataset(path) as ds:
@@ -37,16 +78,21 @@ def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: 
         segs = list(ds.segments(first + 1, first + 1 + segments))
     best = None
     for _ in range(repeat):
-        tracker = SCTNTracker(model, seed=0, fast=fast, finetune_iters=0, crop=crop)
+        tracker = tracker_cls(model, seed=0, fast=fast, finetune_iters=0, crop=crop)
         tracker.init(s0.events, s0.t0_us, s0.box, *wh)
         start, cpu = time.perf_counter(), time.process_time()
-        ious = [float(iou_xywh(tracker.track(s.events, s.t0_us), s.box)) for s in segs]
+        tracked = [tracker.track(s.events, s.t0_us) for s in segs]
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        ious = [float(iou_xywh(b, s.box)) for b, s in zip(tracked, segs)]
+        if boxes_out is not None:
+            boxes_out[:] = tracked
         if best is None or wall < best[0]:
             best = (wall, cpu)
     wall, cpu = best
     # cpu seconds show the cost when the machine is shared (wall time then overstates it)
-    return {"fast": fast, "crop": crop if fast else None, "threads": threads, "segments": len(segs),
+    path_used = getattr(tracker, "candidate_path", None) if not fast else None
+    return {"fast": fast, "crop": crop if fast else None, "per_candidate": path_used, "threads": threads,
+            "segments": len(segs),
             "segments_per_s": round(len(segs) / wall, 2), "ms_per_segment": round(1000 * wall / len(segs), 2),
             "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
             "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
@@ -59,6 +105,8 @@ def main() -> None:
     parser.add_argument("--segments", type=int, default=50)
     parser.add_argument("--repeat", type=int, default=3, help="fast-mode runs per setting; the best is kept")
     parser.add_argument("--fast-only", action="store_true", help="skip the paper-faithful mode (~1 segment/s)")
+    parser.add_argument("--sequences", nargs="+", help="per file: per-candidate dense vs event-driven, and fast mode")
+    parser.add_argument("--drop-biases", action="store_true", help="evaluate the checkpoint without biases/tail steps")
     args = parser.parse_args()
     from sctn.checkpoint import load_checkpoint
     from sctn.encoding import encode_boxes, encode_search
@@ -66,6 +114,11 @@ def main() -> None:
     from sctn.samples import TRACK, propose
 
     model, _ = load_checkpoint(args.checkpoint)
+    if args.drop_biases:
+        model = bias_free(model)
+    if args.sequences:
+        print(json.dumps(per_sequence(model, [Path(p) for p in args.sequences], args.segments), indent=2))
+        return
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(args.data) if args.data else None
         if path is None:
@@ -96,6 +149,32 @@ def main() -> None:
                       "fast_search_per_segment": {crop: {k: ops[k] for k in ("ac_ops", "mac_ops", "energy_pj")}
                                                   for crop, ops in search.items()}},
                      indent=2))
+
+
+def per_sequence(model, paths: list[Path], segments: int) -> dict:
+    """Segments/s on one thread per file: per candidate (dense path, event-driven path) and fast mode."""
+    from sctn.sparse_eval import exact_blocker
+
+    rows = []
+    for fast, cls in ((False, dense_scoring_tracker()), (False, None), (True, None)):  # compile / load numba code
+        time_mode(model, paths[0], fast, 2, 1, tracker_cls=cls)
+    for path in paths:
+        dense_boxes: list = []
+        sparse_boxes: list = []
+        dense = time_mode(model, path, False, segments, 1, tracker_cls=dense_scoring_tracker(), boxes_out=dense_boxes)
+        sparse = time_mode(model, path, False, segments, 1, boxes_out=sparse_boxes)
+        fast = time_mode(model, path, True, segments, 1)
+        rows.append({"sequence": path.stem, "segments": dense["segments"],
+                     "per_candidate_dense_segments_per_s": dense["segments_per_s"],
+                     "per_candidate_event_driven_segments_per_s": sparse["segments_per_s"],
+                     "speed_up": round(sparse["segments_per_s"] / dense["segments_per_s"], 1),
+                     "cpu_ms_per_segment_dense_vs_event_driven": [dense["cpu_ms_per_segment"],
+                                                                  sparse["cpu_ms_per_segment"]],
+                     "fast_bilinear_segments_per_s": fast["segments_per_s"],
+                     "same_boxes": bool(np.array_equal(np.array(dense_boxes), np.array(sparse_boxes))),
+                     "event_driven_path": sparse["per_candidate"],
+                     "mean_iou_without_reinit": sparse["mean_iou_without_reinit"]})
+    return {"threads": 1, "exact_blocker": exact_blocker(model), "sequences": rows}
 
 
 if __name__ == "__main__":

@@ -1,0 +1,177 @@
+"""Per-candidate SCTN evaluation (the paper's method) driven by the events and spikes that exist.
+
+The dense path encodes each candidate box on its own 107 x 107 canvas (sctn.encoding.encode_boxes)
+and runs the whole network on it: almost all of that input is zeros. Without biases a neuron that
+never receives current stays at V = 0 and never fires, so only what events reach needs computing:
+
+- input -> conv1: conv1's kernel equals its stride (4 x 4, stride 4), so each canvas pixel feeds one
+  conv1 cell. Each candidate's events (inside its box) set bits of a 32-bit mask per (cell, step),
+  one bit per (row, column, polarity) of the kernel; the mask also removes repeated events, as the
+  binary canvas does. Only the cells that got a bit run their C-LIF neurons.
+- conv2, conv3: only cells whose window holds a spike of the layer below run; their current is the sum
+  of the weight vectors of the spikes in the window (additions only).
+- fc1, fc2, out: the model's own layers on conv3's spikes, fc1 only on the (candidate, step) rows in
+  which conv3 fired (a silent row's current is 0).
+
+Outputs equal the dense path's bit for bit, not just to rounding: each current is summed in the
+order torch's CPU convolution sums it (kernel row, kernel column, input channel; found by
+experiment against torch 2.13's oneDNN and held by the tests), the neurons repeat
+sctn.neurons._clif_steps's arithmetic, and the fully connected layers are torch's (a row's result
+does not depend on which other rows are in the batch). A model for which this cannot hold (a
+nonzero bias, an overlapping first kernel, more than 32 channels) is refused by `exact_blocker`'s
+reason; SCTNTracker then runs the dense path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from dvsot.events import EventBatch
+from sctn.encoding import box_canvas, encode_boxes
+from sctn.energy import LAYER_NAMES, conv_fanout
+from sctn.network import SCTN
+from sctn.sparse_kernels import BITS, NBITS, conv_layers
+
+
+def exact_blocker(model: SCTN) -> str | None:
+    """Why sparse evaluation cannot reproduce `model`'s dense per-candidate outputs exactly, or None if it can."""
+    cfg = model.cfg
+    for name, layer in zip(("conv1", "conv2", "conv3", "fc1", "fc2", "fc3"), list(model.convs) + list(model.fcs)):
+        if layer.bias is not None and bool(torch.count_nonzero(layer.bias.detach())):
+            return f"{name} has a nonzero bias (neurons without events can fire)"
+    if cfg.kernels[0] != cfg.strides[0] or 2 * cfg.kernels[0] ** 2 > 32:
+        return "conv1's kernel must equal its stride and hold at most 32 inputs (2 x k x k)"
+    if max(cfg.channels) > 32:
+        return "more than 32 channels in a convolution"
+    return None
+
+
+def dense_candidate_voltages(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray,
+                             chunk: int = 64) -> torch.Tensor:
+    """Output voltages (N, T + tail, 2) of N candidate boxes the dense way: encode_boxes and the whole network,
+    `chunk` candidates at a time (the reference candidate_voltages reproduces; any model)."""
+    cfg = model.cfg
+    boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
+    with torch.no_grad():
+        parts = [model(encode_boxes(events, t0_us, boxes[i:i + chunk], cfg.input_size, cfg.steps, cfg.step_us))
+                 for i in range(0, len(boxes), chunk)]
+    return torch.cat(parts) if parts else torch.zeros(0, cfg.steps + cfg.tail_steps, 2)
+
+
+def per_candidate_voltages(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray
+                           ) -> tuple[torch.Tensor, str]:
+    """The paper's per-candidate voltages (N, T + tail, 2) and how they were computed: "sparse" (candidate_voltages)
+    when that is exact for the model, else "dense (<reason>)" (dense_candidate_voltages)."""
+    reason = exact_blocker(model)
+    if reason is None:
+        return candidate_voltages(model, events, t0_us, boxes_xywh), "sparse"
+    return dense_candidate_voltages(model, events, t0_us, boxes_xywh), f"dense ({reason})"
+
+
+def candidate_voltages(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray) -> torch.Tensor:
+    """Output voltages (N, T + tail, 2) of N candidate boxes (xywh px) of the segment starting at t0_us, each
+    on its own masked canvas: `model(encode_boxes(events, t0_us, boxes))` computed from the events alone."""
+    return _evaluate(model, events, t0_us, boxes_xywh, record=False)[0]
+
+
+def candidate_record(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray
+                     ) -> tuple[torch.Tensor, dict[str, np.ndarray]]:
+    """Voltages as candidate_voltages and, per layer of sctn.energy.LAYER_NAMES, each candidate's spike count and
+    the AC operations they drive (spikes x fan-out, as sctn.energy.layer_ops counts them): "spikes" and "ac_ops",
+    each {layer: (N,) float64}; "maps": the spikes of conv3 (flattened as fc1 reads them), fc1, fc2 and the
+    output layer, each (T + tail, N, width) as forward_record gives them."""
+    return _evaluate(model, events, t0_us, boxes_xywh, record=True)
+
+
+def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, record: bool):
+    reason = exact_blocker(model)
+    if reason is not None:
+        raise ValueError(f"sparse per-candidate evaluation is not exact for this model: {reason}")
+    cfg = model.cfg
+    size, steps = cfg.input_size, cfg.steps
+    total = steps + cfg.tail_steps
+    boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
+    n = len(boxes)
+    if n == 0:
+        maps = {"conv3": torch.zeros(total, 0, cfg.channels[2] * cfg.conv_sizes()[2] ** 2),
+                "fc1": torch.zeros(total, 0, cfg.fc[0]), "fc2": torch.zeros(total, 0, cfg.fc[1]),
+                "output": torch.zeros(total, 0, 2)}
+        none = {name: np.zeros(0) for name in LAYER_NAMES}
+        return torch.zeros(0, total, 2), {"spikes": none, "ac_ops": dict(none), "maps": maps} if record else None
+    geom = np.ascontiguousarray(box_canvas(boxes, size))
+    ex, ey, ep, es, tile_start, tiles = _segment_events(events, t0_us, geom, steps, cfg.step_us)
+    sizes = [size] + cfg.conv_sizes()
+    c3 = cfg.channels[2]
+    rows3 = np.empty((n * total, c3 * sizes[3] ** 2), np.float32)  # conv3's spikes of the rows that hold any
+    row_of = np.full(n * total, -1, np.int64)  # (candidate, step) -> its row of rows3
+    counts = np.zeros((n, 4, 2), np.float64)  # per layer input .. conv3: spikes, ACs
+    fans = [np.ascontiguousarray(conv_fanout(model.convs[k], (sizes[k], sizes[k])).numpy().reshape(-1), np.float64)
+            for k in range(3)]
+    # (kernel row, column, input channel) x output channel: the order torch's convolution sums a window in
+    weights = [np.ascontiguousarray(c.weight.detach().permute(2, 3, 1, 0).reshape(-1).numpy(), np.float32)
+               for c in model.convs]
+    # d_m, d_s, V0 per neuron of a layer's cells side by side (cell-major, channel-minor)
+    consts = [np.ascontiguousarray(np.tile(np.stack(model.neurons[k]._inference_constants()), (1, sizes[k + 1] ** 2)))
+              for k in range(3)]
+    used = conv_layers(ex, ey, ep, es, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
+                        *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *consts,
+                        np.float32(model.neurons[0].theta), total, record, *fans, BITS, NBITS, rows3, row_of,
+                       counts)
+    with torch.no_grad():
+        fc1 = model.fcs[0]
+        current = torch.zeros(n * total, fc1.out_features)
+        if used:
+            # a row's sums do not depend on the other rows of the batch (a test holds it), so the silent
+            # rows, whose current is 0, are left out
+            current[torch.from_numpy(np.flatnonzero(row_of >= 0))] = fc1(torch.from_numpy(rows3[:used]))[
+                torch.from_numpy(row_of[row_of >= 0])]
+        h, _ = model.neurons[3](current.view(n, total, -1).transpose(0, 1))  # (T, N, width), as the dense path
+        fc_spikes = [h]
+        h, _ = model.neurons[4](model.fcs[1](h))
+        fc_spikes.append(h)
+        out, v = model.neurons[5](model.fcs[2](h))
+    volts = v.transpose(0, 1)
+    if not record:
+        return volts, None
+    spikes = {name: counts[:, k, 0].copy() for k, name in enumerate(LAYER_NAMES[:4])}
+    ops = {name: counts[:, k, 1].copy() for k, name in enumerate(LAYER_NAMES[:3])}
+    ops["conv3"] = spikes["conv3"] * fc1.out_features
+    for k, (name, s) in enumerate(zip(LAYER_NAMES[4:], fc_spikes + [out])):
+        spikes[name] = s.sum(dim=(0, 2)).double().numpy()
+        ops[name] = spikes[name] * (model.fcs[k + 1].out_features if k < 2 else 0)
+    conv3 = torch.zeros(n * total, rows3.shape[1])
+    if used:
+        conv3[torch.from_numpy(np.flatnonzero(row_of >= 0))] = torch.from_numpy(rows3[row_of[row_of >= 0]])
+    maps = {"conv3": conv3.view(n, total, -1).transpose(0, 1), "fc1": fc_spikes[0], "fc2": fc_spikes[1], "output": out}
+    return volts, {"spikes": spikes, "ac_ops": ops, "maps": maps}
+
+
+def _segment_events(events: EventBatch, t0_us: int, geom: np.ndarray, steps: int, step_us: int):
+    """The segment's events inside some box, grouped by sensor tile of TILE x TILE px: pixel centres x, y
+    (float32, as encode_boxes forms them), polarity, step (int64), the tiles' CSR starts and, per box, the
+    first and last tile column and row that can hold its events and the tile columns (N, 5)."""
+    step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us
+    ex = events.x.astype(np.float32) + np.float32(0.5)
+    ey = events.y.astype(np.float32) + np.float32(0.5)
+    keep = ((step >= 0) & (step < steps) & (ex >= geom[:, 0].min(initial=np.inf)) & (ex < geom[:, 1].max(initial=0))
+            & (ey >= geom[:, 2].min(initial=np.inf)) & (ey < geom[:, 3].max(initial=0)))
+    ix, iy = events.x[keep].astype(np.int64) // TILE, events.y[keep].astype(np.int64) // TILE
+    cols = int(ix.max(initial=0)) + 1
+    rows = int(iy.max(initial=0)) + 1
+    tile = iy * cols + ix
+    order = np.argsort(tile, kind="stable")
+    tile_start = np.searchsorted(tile[order], np.arange(rows * cols + 1))
+    # pixel x holds events with centre x + 0.5 in [left, right): tiles floor((left - 0.5) / TILE) ..
+    # floor((right - 0.5) / TILE), clipped (the kernel tests each event exactly)
+    edges = np.floor((geom[:, :4].astype(np.float64) - 0.5) / TILE).astype(np.int64)
+    limit = np.array([cols, cols, rows, rows]) - 1
+    tiles = np.stack([np.clip(edges[:, k], 0, limit[k]) for k in range(4)] + [np.full(len(geom), cols)], axis=1)
+    empty = (edges[:, 1] < 0) | (edges[:, 3] < 0) | (edges[:, 0] > limit[0]) | (edges[:, 2] > limit[2])
+    tiles[empty, 1] = tiles[empty, 0] - 1  # no tile at all
+    return (np.ascontiguousarray(ex[keep][order]), np.ascontiguousarray(ey[keep][order]),
+            np.ascontiguousarray(events.p[keep][order], np.int64), np.ascontiguousarray(step[keep][order]),
+            tile_start.astype(np.int64), np.ascontiguousarray(tiles))
+
+
+TILE = 8

@@ -1,0 +1,287 @@
+"""Compiled kernels of sctn/sparse_eval.py: the input and the three spiking convolutions of SCTN per candidate,
+over the events and spikes that exist (see that module for the method and why it is exact).
+
+Spikes of a layer are kept as lists per cell (step * 32 + channel, by step then channel), so a
+convolution adds exactly the weight rows of the spikes in each window, in the order torch's CPU
+convolution sums them. Rows are added 8 lanes at a time (_vadd8: numba leaves such short loops
+scalar), and C-LIF runs over all of a layer's cells side by side (per cell its 8 or 16 channels
+would not vectorise).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+
+def _bit_tables() -> tuple[np.ndarray, np.ndarray]:
+    """For every byte value: its set bits in ascending order (256, 8) and how many there are (256,)."""
+    bits = np.zeros((256, 8), np.int64)
+    nbits = np.zeros(256, np.int64)
+    for b in range(256):
+        on = [i for i in range(8) if b >> i & 1]
+        bits[b, :len(on)] = on
+        nbits[b] = len(on)
+    return bits, nbits
+
+
+BITS, NBITS = _bit_tables()
+
+
+@intrinsic
+def _vadd8(typingctx, cur, at, w, src):
+    """cur[at:at + 8] += w[src:src + 8] as one 8-lane float32 vector operation (lane by lane the same IEEE additions as
+    a loop; numba leaves such short loops scalar). No bounds check: callers keep the indices in range."""
+    def codegen(context, builder, sig, args):
+        vec = ir.VectorType(ir.FloatType(), 8).as_pointer()
+        a_cur = context.make_array(sig.args[0])(context, builder, args[0])
+        a_w = context.make_array(sig.args[2])(context, builder, args[2])
+        p_cur = builder.bitcast(builder.gep(a_cur.data, [args[1]]), vec)
+        p_w = builder.bitcast(builder.gep(a_w.data, [args[3]]), vec)
+        builder.store(builder.fadd(builder.load(p_cur, align=4), builder.load(p_w, align=4)), p_cur, align=4)
+        return context.get_dummy_value()
+    return types.void(cur, at, w, src), codegen
+
+
+@intrinsic
+def _load_u64(typingctx, arr, at):
+    """The 8 bytes arr[at:at + 8] of a byte array as one little-endian uint64 (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        a = context.make_array(sig.args[0])(context, builder, args[0])
+        ptr = builder.bitcast(builder.gep(a.data, [args[1]]), ir.IntType(64).as_pointer())
+        return builder.load(ptr, align=1)
+    return types.uint64(arr, at), codegen
+
+
+@numba.njit(cache=True, inline="always")
+def _add_row(cur: np.ndarray, at: int, w: np.ndarray, row: int, ch: int) -> None:  # pragma: no cover - compiled
+    """cur[at:at + ch] += w[row * ch:(row + 1) * ch], 8 lanes at a time."""
+    src = row * ch
+    o = 0
+    while o + 8 <= ch:
+        _vadd8(cur, at + o, w, src + o)
+        o += 8
+    while o < ch:
+        cur[at + o] += w[src + o]
+        o += 1
+
+
+@numba.njit(cache=True)
+def _clif_flat(cur: np.ndarray, width: int, m: int, steps: int, consts: np.ndarray, theta: np.float32,
+               fired: np.ndarray, state: np.ndarray) -> None:  # pragma: no cover - compiled
+    """C-LIF of neurons 0..m-1 over currents cur (steps x width, flat) into fired (same layout), exactly as
+    sctn.neurons._clif_steps computes it; consts (3, >= m) d_m, d_s, V0 per neuron, state (3, >= m) scratch.
+    Neurons innermost and contiguous, so the loop vectorises (per cell it would not: 8 or 16 channels)."""
+    u, w, reset = state[0], state[1], state[2]
+    d_m, d_s, v0 = consts[0], consts[1], consts[2]
+    for j in range(m):
+        u[j] = 0
+        w[j] = 0
+        reset[j] = 0
+    for t in range(steps):
+        c = cur[t * width:t * width + m]
+        f = fired[t * width:t * width + m]
+        for j in range(m):
+            x = c[j] * v0[j]
+            un = (u[j] + x - reset[j]) * d_m[j]
+            wn = (w[j] + x) * d_s[j]
+            u[j] = un
+            w[j] = wn
+            spike = un - wn >= theta
+            f[j] = spike
+            reset[j] = theta * spike
+
+
+@numba.njit(cache=True)
+def _spike_lists(fired: np.ndarray, width: int, n: int, ch: int, steps: int, bits: np.ndarray, nbits: np.ndarray,
+                 start: np.ndarray, spikes: np.ndarray) -> int:  # pragma: no cover - compiled
+    """The spikes of n cells (fired: steps x width flat bytes, cell-major channels) as lists: cell j's are
+    spikes[start[j]:start[j + 1]], each step * 32 + channel, by step then channel. Returns the total.
+    Eight channels' bytes (0 or 1) are read as one word and packed into a byte of bits by a multiply."""
+    k = 0
+    pack = np.uint64(0x0102040810204080)
+    for j in range(n):
+        start[j] = k
+        for t in range(steps):
+            at = t * width + j * ch
+            for g in range(0, ch, 8):
+                word = _load_u64(fired, at + g)
+                if word:
+                    if ch - g < 8:
+                        word &= (np.uint64(1) << np.uint64(8 * (ch - g))) - np.uint64(1)
+                    value = (word * pack) >> np.uint64(56)
+                    for q in range(nbits[value]):
+                        spikes[k] = t * 32 + g + bits[value, q]
+                        k += 1
+    start[n] = k
+    return k
+
+
+@numba.njit(cache=True)
+def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, consts, theta, steps,
+                width, cur, fired, state, slot_out, cells_out, start_out, spikes_out, bits,
+                nbits) -> int:  # pragma: no cover - compiled
+    """One spiking convolution, on the output cells whose window holds a spike of the layer below.
+
+    Input: cells_in[:n_in] (map cell indices), slot_in (map cell -> its index j, or -1) and their
+    spike lists (start_in, spikes_in; see _spike_lists). w (k k C_in x C_out, flat) rows in (kernel row,
+    column, input channel) order, the order torch sums a window in; a window's spikes are added in that
+    order per step. Output likewise (cells_out, slot_out, start_out, spikes_out); returns their number."""
+    c_in = w.shape[0] // (k * k * ch)
+    n_out = 0
+    for j in range(n_in):
+        if start_in[j + 1] == start_in[j]:
+            continue
+        cell = cells_in[j]
+        y, x = cell // s_in, cell % s_in
+        for oy in range(max(0, -((k - 1 - y) // st)), min(s_out - 1, y // st) + 1):
+            for ox in range(max(0, -((k - 1 - x) // st)), min(s_out - 1, x // st) + 1):
+                if slot_out[oy * s_out + ox] < 0:
+                    slot_out[oy * s_out + ox] = n_out
+                    cells_out[n_out] = oy * s_out + ox
+                    n_out += 1
+    for t in range(steps):
+        cur[t * width:t * width + n_out * ch] = 0
+    for j in range(n_out):
+        cell = cells_out[j]
+        oy, ox = cell // s_out, cell % s_out
+        col = j * ch
+        for ky in range(k):
+            for kx in range(k):
+                src = slot_in[(oy * st + ky) * s_in + ox * st + kx]
+                if src < 0:
+                    continue
+                base = (ky * k + kx) * c_in
+                for q in range(start_in[src], start_in[src + 1]):
+                    e = spikes_in[q]
+                    at, row = (e >> 5) * width + col, (base + (e & 31)) * ch
+                    if ch == 16:  # the usual widths, without the loop of _add_row
+                        _vadd8(cur, at, w, row)
+                        _vadd8(cur, at + 8, w, row + 8)
+                    elif ch == 8:
+                        _vadd8(cur, at, w, row)
+                    else:
+                        _add_row(cur, at, w, base + (e & 31), ch)
+    _clif_flat(cur, width, n_out * ch, steps, consts, theta, fired, state)
+    _spike_lists(fired, width, n_out, ch, steps, bits, nbits, start_out, spikes_out)
+    return n_out
+
+
+@numba.njit(cache=True)
+def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3, k1, k2, k3, w1, w2, w3, ch1, ch2,
+                ch3, st2, st3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, bits, nbits, rows3, row_of,
+                counts) -> int:  # pragma: no cover - compiled
+    """Input and the three spiking convolutions of every candidate (see the module docstring).
+
+    ex, ey, ep, es (E,): event pixel centres, polarity, step, grouped by sensor tile (tile_start: CSR
+    starts; tiles (N, 5): per box the first and last tile column and row to read, and the tile columns);
+    geom (N, 7) from box_canvas; s1..s3 the conv maps' sizes, k1..k3 their kernels, ch1..ch3 their
+    channels; w1, w2, w3 flat (k k C_in x C_out) in (kernel row, column, input channel; polarity for w1)
+    x output channel order; c1..c3 (3, cells x C) d_m, d_s, V0 per neuron of a layer's cells side by
+    side. Writes conv3's spikes of each (candidate, step) that holds any to a row of rows3 (torch's
+    flatten order) and that row's index to row_of[candidate * steps + step]; returns the rows used.
+    With record, per candidate and layer (input .. conv3) the spike count and (input .. conv2) the ACs
+    they drive (fan0..fan2: fan-out per pixel of the layer's map) go to counts (N, 4, 2).
+    """
+    cover = s1 * k1  # canvas pixels conv1 reads
+    width = max(s1 * s1 * ch1, s2 * s2 * ch2, s3 * s3 * ch3)
+    slot1 = np.full(s1 * s1, -1, np.int64)
+    slot2 = np.full(s2 * s2, -1, np.int64)
+    slot3 = np.full(s3 * s3, -1, np.int64)
+    cells1 = np.empty(s1 * s1, np.int64)
+    cells2 = np.empty(s2 * s2, np.int64)
+    cells3 = np.empty(s3 * s3, np.int64)
+    start1 = np.empty(s1 * s1 + 1, np.int64)
+    start2 = np.empty(s2 * s2 + 1, np.int64)
+    start3 = np.empty(s3 * s3 + 1, np.int64)
+    spikes1 = np.empty(steps * s1 * s1 * ch1 + 1, np.int64)
+    spikes2 = np.empty(steps * s2 * s2 * ch2 + 1, np.int64)
+    spikes3_list = np.empty(steps * s3 * s3 * ch3 + 1, np.int64)
+    masks1 = np.zeros((s1 * s1, steps), np.int64)  # per touched conv1 cell and step: its input pixels as bits
+    stamp = np.zeros(steps * 2 * size * size if record else 1, np.int64)  # dedups input pixels conv1 does not read
+    cur = np.zeros(steps * width, np.float32)
+    fired = np.zeros(steps * width + 8, np.uint8)  # + 8: _spike_lists reads whole words
+    state = np.zeros((3, width), np.float32)
+    nbytes1 = (w1.shape[0] // ch1 + 7) // 8
+    used = 0  # rows of rows3 filled
+    for i in range(geom.shape[0]):
+        x0, x1, y0, y1, cx, cy, sc = geom[i, 0], geom[i, 1], geom[i, 2], geom[i, 3], geom[i, 4], geom[i, 5], geom[i, 6]
+        n1 = 0
+        for ty in range(tiles[i, 2], tiles[i, 3] + 1):
+            for e in range(tile_start[ty * tiles[i, 4] + tiles[i, 0]], tile_start[ty * tiles[i, 4] + tiles[i, 1] + 1]):
+                fx, fy = ex[e], ey[e]
+                if not (fx >= x0 and fx < x1 and fy >= y0 and fy < y1):
+                    continue
+                px = int(np.floor((fx - cx) * sc + half))
+                py = int(np.floor((fy - cy) * sc + half))
+                if px < 0 or px >= size or py < 0 or py >= size:
+                    continue
+                if px < cover and py < cover:
+                    cell = (py // k1) * s1 + px // k1
+                    if slot1[cell] < 0:
+                        slot1[cell] = n1
+                        cells1[n1] = cell
+                        masks1[n1, :] = 0
+                        n1 += 1
+                    masks1[slot1[cell], es[e]] |= 1 << (((py % k1) * k1 + px % k1) * 2 + ep[e])
+                elif record:
+                    idx = ((es[e] * 2 + ep[e]) * size + py) * size + px
+                    if stamp[idx] != i + 1:
+                        stamp[idx] = i + 1
+                        counts[i, 0, 0] += 1  # fan-out 0: conv1 does not read it
+        # conv1 on the cells that got events: a cell's pixels in (row, column, polarity) order per step
+        for t in range(steps):
+            cur[t * width:t * width + n1 * ch1] = 0
+        for j in range(n1):
+            for t in range(steps):
+                mask = masks1[j, t]
+                if mask == 0:
+                    continue
+                for byte in range(nbytes1):
+                    value = (mask >> (8 * byte)) & 255
+                    for q in range(nbits[value]):
+                        _add_row(cur, t * width + j * ch1, w1, 8 * byte + bits[value, q], ch1)
+        _clif_flat(cur, width, n1 * ch1, steps, c1, theta, fired, state)
+        _spike_lists(fired, width, n1, ch1, steps, bits, nbits, start1, spikes1)
+        n2 = _conv_cells(cells1, n1, slot1, start1, spikes1, s1, s2, k2, st2, w2, ch2, c2, theta, steps, width, cur,
+                         fired, state, slot2, cells2, start2, spikes2, bits, nbits)
+        n3 = _conv_cells(cells2, n2, slot2, start2, spikes2, s2, s3, k3, st3, w3, ch3, c3, theta, steps, width, cur,
+                         fired, state, slot3, cells3, start3, spikes3_list, bits, nbits)
+        for j in range(n3):
+            cell = cells3[j]
+            for q in range(start3[j], start3[j + 1]):
+                e = spikes3_list[q]
+                row = row_of[i * steps + (e >> 5)]
+                if row < 0:
+                    row = used
+                    row_of[i * steps + (e >> 5)] = used
+                    rows3[row, :] = 0
+                    used += 1
+                rows3[row, (e & 31) * s3 * s3 + cell] = 1.0
+        if record:
+            for j in range(n1):
+                cell = cells1[j]
+                for t in range(steps):
+                    c = nbits[masks1[j, t] & 255] + nbits[(masks1[j, t] >> 8) & 255] + \
+                        nbits[(masks1[j, t] >> 16) & 255] + nbits[(masks1[j, t] >> 24) & 255]
+                    counts[i, 0, 0] += c
+                    counts[i, 0, 1] += c * fan0[(cell // s1) * k1 * size + (cell % s1) * k1]
+                c = start1[j + 1] - start1[j]
+                counts[i, 1, 0] += c
+                counts[i, 1, 1] += c * fan1[cell]
+            for j in range(n2):
+                c = start2[j + 1] - start2[j]
+                counts[i, 2, 0] += c
+                counts[i, 2, 1] += c * fan2[cells2[j]]
+            counts[i, 3, 0] = start3[n3]
+        # leave the scratch maps clean for the next candidate
+        for j in range(n1):
+            slot1[cells1[j]] = -1
+        for j in range(n2):
+            slot2[cells2[j]] = -1
+        for j in range(n3):
+            slot3[cells3[j]] = -1
+    return used

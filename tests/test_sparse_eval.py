@@ -1,0 +1,167 @@
+"""Event-driven per-candidate evaluation (sctn/sparse_eval.py) against the dense path it replaces."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from dvsot.events import EventBatch
+from sctn.encoding import encode_boxes
+from sctn.energy import LAYER_NAMES, layer_ops
+from sctn.network import SCTN, NetworkConfig
+from sctn.samples import propose
+from sctn.sparse_eval import (candidate_record, candidate_voltages, dense_candidate_voltages, exact_blocker,
+                              per_candidate_voltages)
+
+torch.set_num_threads(1)
+DATA = Path(__file__).resolve().parents[1] / "data" / "dvsot21"
+
+
+def _bias_free(net: SCTN) -> SCTN:
+    """The network with every bias zero (or none): the paper preset's layers."""
+    with torch.no_grad():
+        for layer in list(net.convs) + list(net.fcs):
+            if layer.bias is not None:
+                layer.bias.zero_()
+    return net.eval()
+
+
+def _net(seed: int, **cfg) -> SCTN:
+    """A bias-free SCTN whose every layer fires on masked candidate inputs (calibrated on them, then boosted)."""
+    torch.manual_seed(seed)
+    net = _bias_free(SCTN(NetworkConfig(**cfg)))
+    x = (torch.rand(8, net.cfg.steps, 2, 107, 107) < 0.04).float()
+    x[:, :, :, :, 70:] = 0  # candidates see part of the canvas
+    net.calibrate(x, quantile=0.6)
+    return _bias_free(net)
+
+
+def _events(seed: int, n: int = 4000, wh: tuple[int, int] = (160, 120)) -> EventBatch:
+    """Events of one 10 ms segment: a dense blob (with repeated pixel-steps) over sparse noise."""
+    rng = np.random.default_rng(seed)
+    blob = rng.normal([70, 60], [14, 10], size=(n, 2))
+    noise = rng.uniform([0, 0], wh, size=(n // 4, 2))
+    xy = np.clip(np.concatenate([blob, noise]), 0, np.array(wh) - 1).astype(np.uint16)
+    t = np.sort(rng.integers(0, 10_000, len(xy)))
+    return EventBatch(xy[:, 0], xy[:, 1], t.astype(np.int64), rng.integers(0, 2, len(xy)).astype(np.uint8))
+
+
+def _boxes(seed: int, n: int = 48) -> np.ndarray:
+    """Candidates around the blob plus edge cases: larger than the canvas (scaled down), past the sensor's
+    edges, without events, thin, and at fractional positions."""
+    rng = np.random.default_rng(seed)
+    around = propose(rng, np.array([45.3, 40.7, 50.0, 38.0]), n, "gaussian", 0.6, 1.05, (160, 120))
+    edge = np.array([[-20.5, -10.2, 160.0, 130.0], [10.0, 5.0, 140.0, 90.0], [120.7, 90.2, 60.0, 50.0],
+                     [150.0, 2.0, 9.0, 9.0], [66.6, 0.0, 3.0, 119.0], [0.0, 59.9, 159.0, 2.5]])
+    return np.concatenate([around, edge]).astype(np.float32)
+
+
+def _dense_record(net: SCTN, events: EventBatch, boxes: np.ndarray):
+    x = encode_boxes(events, 0, boxes, steps=net.cfg.steps)
+    with torch.no_grad():
+        return net.forward_record(x)
+
+
+def _check_equal(net: SCTN, events: EventBatch, boxes: np.ndarray, t0_us: int = 0) -> dict:
+    """Assert the sparse record equals the dense one: voltages, every layer's spikes; return the dense counts."""
+    v, rec = candidate_record(net, events, t0_us, boxes)
+    x = encode_boxes(events, t0_us, boxes, net.cfg.input_size, net.cfg.steps, net.cfg.step_us)
+    with torch.no_grad():
+        v_dense, spikes = net.forward_record(x)
+    assert v.shape == v_dense.shape
+    np.testing.assert_allclose(v.numpy(), v_dense.numpy(), rtol=0, atol=1e-5)
+    t, n = spikes[3].shape[:2]
+    assert torch.equal(rec["maps"]["conv3"], spikes[3].reshape(t, n, -1))
+    for name in ("fc1", "fc2", "output"):
+        assert torch.equal(rec["maps"][name], spikes[LAYER_NAMES.index(name)]), name
+    ops = layer_ops(net, spikes)
+    counts = {}
+    for k, name in enumerate(LAYER_NAMES):
+        dense_count = spikes[k].sum(dim=tuple(d for d in range(spikes[k].dim()) if d != 1)).double().numpy()
+        np.testing.assert_array_equal(rec["spikes"][name], dense_count, err_msg=name)
+        np.testing.assert_allclose(rec["ac_ops"][name], ops[k].double().numpy(), rtol=1e-6, err_msg=name)
+        counts[name] = float(dense_count.sum())
+    assert torch.equal(candidate_voltages(net, events, t0_us, boxes), v)
+    return counts
+
+
+@pytest.mark.parametrize("cfg", [{"tail_steps": 0}, {"tail_steps": 2, "channels": (4, 8, 4), "fc": (16, 8)},
+                                 {"tail_steps": 0, "channels": (8, 12, 16), "fc": (32, 16)}])
+def test_sparse_evaluation_equals_the_dense_path_in_every_layer(cfg):
+    net = _net(1, **cfg)
+    counts = _check_equal(net, _events(2), _boxes(3))
+    assert all(counts[name] > 0 for name in LAYER_NAMES), counts  # every layer takes part
+
+
+def test_no_events_no_boxes_and_an_offset_segment():
+    net = _net(4, tail_steps=0)
+    boxes = _boxes(5, n=8)
+    v = candidate_voltages(net, EventBatch.empty(), 0, boxes)
+    assert v.shape == (len(boxes), 10, 2) and not v.any()
+    assert candidate_voltages(net, _events(6), 0, boxes[:0]).shape == (0, 10, 2)
+    e = _events(6)
+    shifted = EventBatch(e.x, e.y, e.t + 123_456, e.p)  # events before and after the segment are left out
+    _check_equal(net, shifted, boxes, t0_us=123_456 + 2_500)
+
+
+@pytest.mark.skipif(not (DATA / "woman_cat.h5").is_file(), reason="rendered DVSOT21-style data not present")
+def test_sparse_evaluation_equals_the_dense_path_on_rendered_segments():
+    from dvsot.dataset import Dataset
+    from sctn.checkpoint import load_checkpoint
+
+    net = _bias_free(load_checkpoint(None)[0])
+    for name in ("woman_cat.h5", "trees_bottle.h5"):
+        with Dataset(DATA / name) as ds:
+            labelled = [i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all()]
+            for i in labelled[len(labelled) // 3::len(labelled) // 3][:2]:
+                seg = ds.segment(i)
+                boxes = propose(np.random.default_rng(i), seg.box.astype(np.float64), 48, "gaussian", 0.6, 1.05,
+                                (ds.width, ds.height))
+                counts = _check_equal(net, seg.events, boxes, seg.t0_us)
+                assert counts["conv3"] > 0
+
+
+def test_models_it_cannot_reproduce_are_refused_and_run_densely():
+    net = _net(7, tail_steps=0)
+    events, boxes = _events(8), _boxes(9, n=8)
+    assert exact_blocker(net) is None
+    assert per_candidate_voltages(net, events, 0, boxes)[1] == "sparse"
+    with torch.no_grad():
+        net.convs[1].bias[3] = 0.01
+    assert "conv2" in exact_blocker(net)
+    with pytest.raises(ValueError, match="conv2 has a nonzero bias"):
+        candidate_voltages(net, events, 0, boxes)
+    v, path = per_candidate_voltages(net, events, 0, boxes)
+    assert path.startswith("dense (conv2") and torch.equal(v, dense_candidate_voltages(net, events, 0, boxes))
+    overlapping = _bias_free(SCTN(NetworkConfig(kernels=(5, 3, 3))))
+    assert "kernel must equal its stride" in exact_blocker(overlapping)
+
+
+def test_tracker_tracks_the_same_boxes_as_with_the_dense_path(tmp_path, monkeypatch):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from synthetic import moving_square_file
+
+    from dvsot.dataset import Dataset
+    import sctn.sparse_eval as sparse_eval
+    from sctn.tracker import SCTNTracker
+
+    net = _net(10, tail_steps=0)
+    path = moving_square_file(tmp_path / "sq.h5", duration_ms=90, seed=2)
+    with Dataset(path) as ds:
+        segs = list(ds.segments(0, 8))
+        wh = (ds.width, ds.height)
+
+    def track() -> tuple[np.ndarray, str]:
+        tracker = SCTNTracker(net, seed=4, fast=False, finetune_iters=0, n_candidates=48)
+        tracker.init(segs[0].events, segs[0].t0_us, segs[0].box, *wh)
+        boxes = [tracker.track(s.events, s.t0_us) for s in segs[1:]]
+        return np.array(boxes), tracker.candidate_path
+
+    sparse, how = track()
+    monkeypatch.setattr(sparse_eval, "exact_blocker", lambda model: "forced by the test")
+    dense, how_dense = track()
+    assert how == "sparse" and how_dense == "dense (forced by the test)"
+    np.testing.assert_array_equal(sparse, dense)
