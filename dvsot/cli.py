@@ -6,8 +6,8 @@ import argparse
 import importlib
 import sys
 
-from dvsot import __version__
-from dvsot.errors import UserError
+from dvsot import __version__, interrupts
+from dvsot.errors import RunError, UserError
 
 # name -> module; the module's docstring's first line is the help text.
 COMMANDS: dict[str, str] = {
@@ -60,15 +60,22 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
     try:
         return int(args._run(args) or 0)
     except UserError as exc:
         print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except RunError as exc:
+        print(f"dvsot {args.command}: failed: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as exc:
         _close_progress_bars()  # else each redraws itself at exit, under the message
-        print(f"dvsot {args.command}: interrupted", file=sys.stderr)
-        return 130
+        why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
+        print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)
+        return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
+    finally:
+        interrupts.restore(saved)
 
 
 if __name__ == "__main__":

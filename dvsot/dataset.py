@@ -52,7 +52,7 @@ import numpy as np
 
 from dvsot import validate
 from dvsot.background import OrderedWorker
-from dvsot.errors import UserError
+from dvsot.errors import RunError, UserError
 from dvsot.events import EventBatch
 
 FORMAT = "dvsot"
@@ -135,7 +135,13 @@ class DatasetWriter:
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
-        self.tmp_path = self.path.with_name(f".{self.path.name}.tmp-{os.getpid()}")
+        from dvsot.outputs import RunOutputs, current_run
+
+        # staged beside the target (host, pid and a random token in its name); renamed at close, or with the
+        # other outputs of the enclosing run_outputs() block
+        self._own_run = None if current_run() is not None else RunOutputs()
+        self._run = current_run() or self._own_run
+        self.tmp_path = self._run.stage(self.path, ready=False)
         self._file = h5py.File(self.tmp_path, "w")
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(map(str, COMPRESSIONS))}, got {compression!r}")
@@ -172,6 +178,11 @@ class DatasetWriter:
             self.close()
         elif exc_type is not None:
             self.abort()
+            from dvsot.outputs import disk_error
+
+            reason = disk_error(exc)
+            if reason is not None:  # a full disk: one line naming the output, not h5py's traceback
+                raise RunError(f"{self.path}: cannot write ({reason}); nothing was replaced") from None
 
     @property
     def num_events(self) -> int:
@@ -317,7 +328,12 @@ class DatasetWriter:
             # over the values as a reader decodes them, so both sides hash the same thing
             f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: _decode_attr(v) for k, v in f.attrs.items()})
             f.close()
-            os.replace(self.tmp_path, self.path)
+            self._run.done(self.path)
+            if self._own_run is not None:
+                from dvsot.outputs import writing
+
+                with writing(self.path):
+                    self._own_run.commit()
         except BaseException:
             self.abort()
             raise
@@ -333,7 +349,7 @@ class DatasetWriter:
             self._file.close()
         except Exception:
             pass
-        self.tmp_path.unlink(missing_ok=True)
+        self._run.drop(self.path)
 
 
 # Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 import time
 from pathlib import Path
 
 import numpy as np
 
-from dvsot import __version__
+from dvsot import __version__, interrupts
 from dvsot.boxes import box_from_mask
 from dvsot.config import SceneConfig
 from dvsot.dataset import DatasetWriter
+from dvsot.errors import UserError
 from dvsot.events import EventSimulator
+from dvsot.outputs import run_outputs
 from dvsot.sampling import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.shapes import mesh_for, sample_points
 from dvsot.simulation import simulate_frames
@@ -66,6 +70,27 @@ def sample_times(cfg: SceneConfig) -> np.ndarray:
 
 
 
+_FRAME = re.compile(r"^\d{6}\.npy$")
+
+
+def check_keep_frames(path: str | Path, flag: str) -> Path:
+    """A directory for kept frames: new, empty, or holding only frames (NNNNNN.npy) of an earlier run, replaced whole."""
+    p = Path(path)
+    if p.is_dir():
+        other = sorted(n for n in os.listdir(p) if not _FRAME.match(n))
+        if other:
+            raise UserError(f"{p}: {flag} holds files that are not kept frames ({', '.join(other[:3])}"
+                            f"{', ...' if len(other) > 3 else ''}); its content is replaced whole, so give a "
+                            "new or empty directory")
+    return p
+
+
+def run_manifest(out_path: str | Path) -> Path:
+    """Where a run with more outputs than the dataset file writes its manifest: .<name>.run.json beside it."""
+    p = Path(out_path)
+    return p.with_name(f".{p.name}.run.json")
+
+
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
              keep_frames: str | Path | None = None) -> dict:
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary."""
@@ -86,36 +111,47 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
              "seed": cfg.seed, "event_seed": cfg.derived_seed("events"), "generator": "dvsot generate",
              "challenges": cfg.challenges,
              "versions": {"dvsot": __version__, "blender": bpy.app.version_string, "numpy": np.__version__}}
-    keep = Path(keep_frames) if keep_frames else None
-    if keep:
-        keep.mkdir(parents=True, exist_ok=True)
     render_s = 0.0
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
-    with BlenderScene(cfg) as scene, DatasetWriter(out_path, W, H, int(round(cfg.segment_ms * 1000)), attrs) as w:
-        bar = tqdm(total=len(times), unit="frame", disable=not progress, desc=cfg.name)
+    # Cycles swallows a KeyboardInterrupt raised inside its callbacks (and renders on), so SIGINT/SIGTERM
+    # are only recorded while Blender runs and raised between frames; the outputs are then never renamed.
+    with run_outputs(run_manifest(out_path) if keep_frames else None) as run, interrupts.deferred():
+        keep = None
+        if keep_frames:
+            check_keep_frames(keep_frames, "keep_frames")
+            keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
+        with BlenderScene(cfg) as scene, DatasetWriter(out_path, W, H, int(round(cfg.segment_ms * 1000)), attrs) as w:
+            interrupts.check()
+            bar = tqdm(total=len(times), unit="frame", disable=not progress, desc=cfg.name)
 
-        def renders():
-            """Luma of each sample in turn; its boxes go to the file as it is rendered."""
-            nonlocal render_s, first_s
-            for i, t in enumerate(times):
-                r0 = time.perf_counter()
-                luma, amodal, visible = scene.render(float(t))
-                render_s += time.perf_counter() - r0
-                if i == 0:
-                    first_s = render_s
-                if keep:
-                    np.save(keep / f"{i:06d}.npy", luma)
-                w.append_boxes(t_us[i], box_from_mask(amodal), box_from_mask(visible))
-                yield luma
+            def renders():
+                """Luma of each sample in turn; its boxes go to the file as it is rendered."""
+                nonlocal render_s, first_s
+                for i, t in enumerate(times):
+                    r0 = time.perf_counter()
+                    luma, amodal, visible = scene.render(float(t))
+                    render_s += time.perf_counter() - r0
+                    interrupts.check()  # a signal during the render: stop here
+                    if i == 0:
+                        first_s = render_s
+                    if keep:
+                        np.save(keep / f"{i:06d}.npy", luma)
+                    w.append_boxes(t_us[i], box_from_mask(amodal), box_from_mask(visible))
+                    yield luma
 
-        def shown(done: int, events: int) -> None:
-            bar.update(1)
-            bar.set_postfix_str(f"t={times[done - 1]:.3f}s events={events:,}", refresh=False)
+            def shown(done: int, events: int) -> None:
+                bar.update(1)
+                bar.set_postfix_str(f"t={times[done - 1]:.3f}s events={events:,}", refresh=False)
 
-        counts = simulate_frames(renders(), t_us, sim, w, cfg.name, shown)
-        bar.close()
-        n_events, n_pos = counts.events, counts.positive
-        w.close(int(t_us[-1]) + 1)
+            try:
+                counts = simulate_frames(renders(), t_us, sim, w, cfg.name, shown)
+            except BaseException:
+                bar.leave = False  # the error line alone, no bar redrawn under it
+                raise
+            finally:
+                bar.close()
+            n_events, n_pos = counts.events, counts.positive
+            w.close(int(t_us[-1]) + 1)
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)
     return {"output": str(out_path), "name": cfg.name, "resolution": f"{W}x{H}", "duration_s": cfg.duration_s,

@@ -9,7 +9,7 @@ from pathlib import Path
 import torch
 
 from dvsot.errors import UserError
-from dvsot.outputs import replacing
+from dvsot.outputs import replacing, run_outputs
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -38,16 +38,20 @@ def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", i
 
 
 def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
-    """Write weights, config and metadata atomically (temp files, then rename), plus a .json of the metadata."""
+    """Write weights, config and metadata, plus a .json of the metadata: both new or both old (one run's pair).
+
+    Both files carry the same `run` id (the .pt in its metadata), so a reader can tell they belong together.
+    """
     p = check_checkpoint_output(path)
     meta_path = metadata_path(p)
     state = {k: v.detach().to(torch.float32).clone() for k, v in model.state_dict().items()}
-    # both are complete before either replaces anything (the checkpoint first), so a failed write leaves
-    # the old pair intact
-    with replacing(meta_path) as tmp_json, replacing(p) as tmp:
-        torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(), "state_dict": state,
-                    "meta": meta}, tmp)
-        tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
+    with run_outputs() as run:  # renamed together when both are complete (dvsot.outputs)
+        meta = {**meta, "run": run.run_id}
+        with replacing(p) as tmp, open(tmp, "wb") as f:  # a file object: a full disk is an OSError, not torch's
+            torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(),
+                        "state_dict": state, "meta": meta}, f)
+        with replacing(meta_path) as tmp_json:
+            tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
     return p
 
 

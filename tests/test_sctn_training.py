@@ -12,6 +12,7 @@ import torch
 from dvsot.boxes import iou_xywh
 from dvsot.cli import main
 from dvsot.dataset import Dataset
+from dvsot.errors import RunError
 from sctn.checkpoint import load_checkpoint, save_checkpoint
 from sctn.samples import FINETUNE, TRACK, TRAIN, SampleSpec, draw_samples, labelled_samples
 from sctn.tracker import SCTNTracker
@@ -178,20 +179,26 @@ def test_failed_checkpoint_write_leaves_no_temp_file_and_the_old_pair_intact(tmp
         real_replace(src, dst)
 
     monkeypatch.setattr(ck.os, "replace", replace)
-    with pytest.raises(OSError):
+    with pytest.raises(RunError, match=r"m\.pt: (cannot write|renaming)"):  # one line, not an OSError
         save_checkpoint(path, tiny_model(), {"note": "new"})
     monkeypatch.undo()
+    if fail_at == 1:  # the journal was on disk: the next run (here: as if this process had died) completes it
+        from dvsot import staging
+
+        monkeypatch.setattr(staging, "pid_alive", lambda pid: False)
+        staging.clean_stale(tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "m.pt"]  # no .tmp files
     if fail_at == 0:
         assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
-    assert load_checkpoint(path)[1]["note"] == ("old" if fail_at == 0 else "new")
+    note = "old" if fail_at == 0 else "new"
+    assert load_checkpoint(path)[1]["note"] == json.loads((tmp_path / "m.json").read_text())["note"] == note
 
 
 def test_failed_torch_save_leaves_no_temp_file(tmp_path, monkeypatch):
     import sctn.checkpoint as ck
 
     def torch_save(obj, f):
-        Path(f).write_bytes(b"half a checkpoint")
+        f.write(b"half a checkpoint")
         raise RuntimeError("disk went away")
 
     monkeypatch.setattr(ck.torch, "save", torch_save)

@@ -12,8 +12,9 @@ Before anything runs, every input is checked: flags, data files, --video names, 
 (loaded into the model), each tracker built once with its --option values, and the output paths.
 --checkpoint and sctn.* options are errors unless --tracker sctn is given.
 
-Outputs are written only when every run has finished, each file atomically (temp file, then
-rename), so an interrupted run or bad input never leaves a table half-written or replaced.
+Outputs are written only when every run has finished, as temp files renamed into place together
+(then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
+or bad input never leaves a table half-written, nor new tables beside old pictures.
 
 Exit status:
   0  every tracker ran on every sequence; tables written.
@@ -32,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 DEFAULT_DATA = "data/dvsot21"
+MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.outputs)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -225,6 +227,7 @@ def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
     from benchmarks.tables import TABLE_FILES
 
     names = {n: "--out" for n in TABLE_FILES.values()}
+    names[MANIFEST] = "--out (the run's manifest)"
     if args.plots:
         names["iou_over_time.png"] = "--plots"
     for seq in args.video:
@@ -308,10 +311,11 @@ def plan(args: argparse.Namespace) -> Plan:
 
 def track(p: Plan, args: argparse.Namespace) -> list:
     """Run every task of the plan (in parallel processes when jobs > 1); results in task order."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from multiprocessing import get_context
+    from concurrent.futures import as_completed
 
     from tqdm import tqdm
+
+    from dvsot.workers import WorkerPool, result
 
     results: list = [None] * len(p.tasks)
     bar = tqdm(total=len(p.tasks), unit="run", desc="bench", disable=args.quiet)
@@ -321,23 +325,29 @@ def track(p: Plan, args: argparse.Namespace) -> list:
             results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t))
             bar.update(1)
     else:
-        # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well)
-        with ProcessPoolExecutor(p.jobs, mp_context=get_context("spawn")) as pool:
+        # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well); workers die with
+        # this process, and on any exception here they are stopped at once (dvsot.workers)
+        with WorkerPool(p.jobs) as pool:
             futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, p.options.get(t)): k
                        for k, (t, f) in enumerate(p.tasks)}
-            try:
-                for fut in as_completed(futures):
-                    results[futures[fut]] = fut.result()
-                    bar.update(1)
-            except BaseException:
-                pool.shutdown(cancel_futures=True)  # nothing will be written: do not wait for the rest
-                raise
+            for fut in as_completed(futures):
+                results[futures[fut]] = result(fut)
+                bar.update(1)
     bar.close()
     return results
 
 
 def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
-    """Write the tables, pictures, videos and energy table into --out, each file atomically; paths by kind."""
+    """Write the tables, pictures, videos and energy table into --out, all together (and a manifest); paths by kind."""
+    from dvsot.outputs import run_outputs
+
+    with run_outputs(p.out_dir / MANIFEST) as run:  # all files of the run renamed into place together, or none
+        paths = _write_all(p, args, summary, results, energy)
+    paths["manifest"] = run.manifest
+    return paths
+
+
+def _write_all(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
     import json
 
     from benchmarks.tables import write_tables, write_text_atomic

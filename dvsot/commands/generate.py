@@ -60,18 +60,23 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
     from dvsot.config import load_scene
     from dvsot.generate import generate
 
+    from dvsot.generate import run_manifest
+    from dvsot.outputs import run_outputs
+
     cfg = load_scene(scene_path, overrides)
     if "sensor.width" in overrides and cfg.sensor.fx is not None:
         from dvsot.errors import UserError
 
         raise UserError(f"{scene_path}: --resolution cannot rescale a lens given as fx/cx/cy")
-    summary = generate(cfg, out_path, Path(scene_path).read_text(), progress=not quiet, keep_frames=keep_frames)
-    if preview:
-        from dvsot.preview import write_preview
+    # the dataset file, its preview and kept frames are one run: renamed into place together, or none of them
+    with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
+        summary = generate(cfg, out_path, Path(scene_path).read_text(), progress=not quiet, keep_frames=keep_frames)
+        if preview:
+            from dvsot.preview import write_preview
 
-        gif = Path(out_path).with_suffix(".gif")
-        write_preview(out_path, gif, max_segments=PREVIEW_SEGMENTS)
-        summary["preview"] = str(gif)
+            gif = Path(out_path).with_suffix(".gif")
+            write_preview(run.staged(out_path), gif, max_segments=PREVIEW_SEGMENTS)
+            summary["preview"] = str(gif)
     return summary
 
 
@@ -113,7 +118,11 @@ def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
             raise UserError(f"{gif}: --preview would write this path, " + ("a directory" if gif.is_dir() else
                                                                             "the dataset file itself"))
     if args.keep_frames:
+        from dvsot.generate import check_keep_frames
+
         output_dir(args.keep_frames, "--keep-frames")
+        for k in _keep_dirs(args.keep_frames, configs):
+            check_keep_frames(k, "--keep-frames")
     if not args.output:
         out_dir.mkdir(parents=True, exist_ok=True)
     return outs
@@ -130,14 +139,22 @@ def _warn_nonsense(paths: list[str], configs: list) -> None:
             print(f"dvsot generate: warning: {path}: {warning}", file=sys.stderr)
 
 
+def _keep_dirs(keep: str | None, configs: list) -> list:
+    """Where each scene keeps its frames: --keep-frames itself for one scene, <it>/<name> for several."""
+    from pathlib import Path
+
+    if not keep:
+        return [None] * len(configs)
+    return [keep] if len(configs) == 1 else [str(Path(keep) / c.name) for c in configs]
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate every scene first (nothing is rendered if one is bad), then render them."""
     import glob
     import json
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
 
     from dvsot.errors import UserError
+    from dvsot.workers import WorkerPool
 
     paths: list[str] = []
     for spec in args.scenes:
@@ -157,13 +174,13 @@ def run(args: argparse.Namespace) -> int:
     if args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
     outs = _outputs(args, paths, configs)
-    jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, args.keep_frames)
-            for p, o in zip(paths, outs)]
+    jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, k)
+            for p, o, k in zip(paths, outs, _keep_dirs(args.keep_frames, configs))]
     if args.jobs == 1 or len(jobs) == 1:
         summaries = [generate_one(*j) for j in jobs]
-    else:
-        with ProcessPoolExecutor(min(args.jobs, len(jobs)), mp_context=get_context("spawn")) as pool:
-            summaries = list(pool.map(generate_one, *zip(*jobs)))
+    else:  # workers die with this process and never rename an output into place after it (dvsot.workers)
+        with WorkerPool(min(args.jobs, len(jobs))) as pool:
+            summaries = pool.map(generate_one, *zip(*jobs))
     for s in summaries:
         if args.quiet:
             print(json.dumps(s))

@@ -1,0 +1,96 @@
+"""SIGINT and SIGTERM as one exception (`Interrupted`), raised where it is safe: at once, or deferred past a block.
+
+Blender's Python callbacks swallow exceptions: a KeyboardInterrupt raised inside a Cycles render is
+printed and the render carries on. Inside `deferred()` the handler only records the signal; `check()`
+(called between frames) and the block's end raise it. A worker process also treats the death of its
+parent as an interrupt (`set_parent`).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by a signal; `exit_status` is 128 + its number (130 for SIGINT, 143 for SIGTERM)."""
+
+    def __init__(self, signum: int, why: str | None = None) -> None:
+        self.signum = int(signum)
+        self.why = why or signal.Signals(self.signum).name
+        super().__init__(self.why)
+
+    @property
+    def exit_status(self) -> int:
+        return 128 + self.signum
+
+
+_state = {"depth": 0, "pending": None, "parent": None}
+
+
+def _handler(signum: int, frame) -> None:
+    if _state["depth"]:
+        _state["pending"] = _state["pending"] or signum  # the first one wins; raised at check() or the block's end
+        return
+    raise Interrupted(signum)
+
+
+def install() -> list:
+    """Make SIGINT and SIGTERM raise `Interrupted` (main thread only); the previous handlers, for `restore`."""
+    if threading.current_thread() is not threading.main_thread():
+        return []
+    saved = [(s, signal.getsignal(s)) for s in SIGNALS]
+    for s in SIGNALS:
+        signal.signal(s, _handler)
+    return saved
+
+
+def restore(saved: list) -> None:
+    """Put back the handlers `install` replaced."""
+    for s, h in saved:
+        signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def set_parent(pid: int) -> None:
+    """In a worker: the parent's pid; once the worker is re-parented, `check()` raises."""
+    _state["parent"] = int(pid)
+
+
+def parent_gone() -> bool:
+    """Whether this is a worker whose parent has died."""
+    return _state["parent"] is not None and os.getppid() != _state["parent"]
+
+
+def check() -> None:
+    """Raise `Interrupted` if a signal arrived during a deferred block, or this worker's parent died."""
+    pending = _state["pending"]
+    if pending:
+        _state["pending"] = None
+        raise Interrupted(pending)
+    if parent_gone():
+        raise Interrupted(signal.SIGTERM, "parent process died")
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Within the block, SIGINT/SIGTERM are recorded, not raised; raised by `check()` or when the block ends."""
+    main = threading.current_thread() is threading.main_thread()
+    saved = [signal.getsignal(s) for s in SIGNALS] if main and _state["depth"] == 0 else None
+    if saved is not None:
+        for s in SIGNALS:
+            signal.signal(s, _handler)
+    _state["depth"] += 1
+    try:
+        yield
+    finally:
+        _state["depth"] -= 1
+        if saved is not None:
+            for s, h in zip(SIGNALS, saved):
+                signal.signal(s, h)
+        if _state["depth"] == 0:
+            check()  # raises the recorded signal (over any exception it caused inside the block)
