@@ -56,6 +56,7 @@ class SequenceResult:
     error: str | None = None
     extra: dict = field(default_factory=dict)
     init_seconds: float = 0.0  # time in tracker.init (SCTN fine-tunes there), apart from tracker_seconds
+    segment_seconds: np.ndarray | None = None  # per segment: seconds in init or update, NaN where not asked
 
     @property
     def segments_per_s(self) -> float:
@@ -64,14 +65,20 @@ class SequenceResult:
 
 
 def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = None,
-                 min_box_px: float = MIN_BOX_PX, max_segments: int | None = None) -> SequenceResult:
-    """Run one tracker over one sequence with re-initialisation on failure; a crash is recorded, not raised."""
+                 min_box_px: float = MIN_BOX_PX, max_segments: int | None = None,
+                 reinitialise: bool = True) -> SequenceResult:
+    """Run one tracker over one sequence with re-initialisation on failure; a crash is recorded, not raised.
+
+    reinitialise=False is the one-pass protocol (benchmarks/ope.py): one initialisation, then the
+    tracker predicts every later segment, failed or without ground truth, and only boxes are scored.
+    """
     name = tracker_name or getattr(tracker, "name", type(tracker).__name__)
     n = dataset.num_segments if max_segments is None else min(max_segments, dataset.num_segments)
     gt = dataset.segment_boxes()[:n]
     scored = dataset.segment_scored()[:n]
     ious = np.full(n, np.nan)
     preds = np.full((n, 4), np.nan, np.float32)
+    seconds = np.full(n, np.nan)  # tracker time per segment (init or update), NaN where not asked
     inits: list[int] = []
     spent, init_spent, tracked = 0.0, 0.0, 0
     energies: list[dict] = []
@@ -80,34 +87,34 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
         for seg in dataset.segments(0, n):
             i = seg.index
             box = gt[i]
-            if not scored[i]:  # rule 5: between annotations the tracker runs on, unscored
-                if not need_init:
-                    start = time.perf_counter()
-                    preds[i] = np.asarray(tracker.update(seg), dtype=np.float32).reshape(4)
-                    spent += time.perf_counter() - start
-                    tracked += 1
-                continue
-            if np.isnan(box).any() or box[2] < min_box_px or box[3] < min_box_px:
-                need_init = True
-                continue
+            has_box = bool(scored[i]) and not (np.isnan(box).any() or box[2] < min_box_px or box[3] < min_box_px)
             if need_init:
+                if not has_box:  # rules 2 and 5: wait for a segment with a box
+                    continue
                 start = time.perf_counter()
                 tracker.init(seg, box.copy(), dataset.width, dataset.height)
-                init_spent += time.perf_counter() - start
+                seconds[i] = time.perf_counter() - start
+                init_spent += seconds[i]
                 inits.append(i)
                 preds[i] = box
                 need_init = False
                 continue
+            if reinitialise and scored[i] and not has_box:  # rule 2: skipped, re-initialised at the next box
+                need_init = True
+                continue
             start = time.perf_counter()
             pred = np.asarray(tracker.update(seg), dtype=np.float32).reshape(4)
-            spent += time.perf_counter() - start
+            seconds[i] = time.perf_counter() - start
+            spent += seconds[i]
             tracked += 1
             preds[i] = pred
+            if not has_box:  # rule 5 (and one-pass): tracked between annotations, not scored
+                continue
             ious[i] = float(iou_xywh(pred, box)) if np.all(np.isfinite(pred)) else 0.0
             energy = tracker.energy_per_segment()  # after the timed update: counting is not tracking
             if energy:
                 energies.append(energy)
-            if ious[i] < FAILURE_IOU:
+            if ious[i] < FAILURE_IOU and reinitialise:
                 need_init = True
     except UserError:  # a damaged data file is bad input, not a tracker failure
         raise
@@ -115,9 +122,10 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
         last = traceback.extract_tb(exc.__traceback__)[-1]
         return SequenceResult(name, dataset.name, np.full(n, np.nan), preds, inits, spent, tracked,
                               error=f"{one_line(exc)} ({last.filename.split('/')[-1]}:{last.lineno})",
-                              init_seconds=init_spent)
+                              init_seconds=init_spent, segment_seconds=seconds)
     energy = None
     if energies:
         keys = set.intersection(*(set(e) for e in energies))
         energy = {k: float(np.mean([e[k] for e in energies])) for k in sorted(keys)}
-    return SequenceResult(name, dataset.name, ious, preds, inits, spent, tracked, energy, init_seconds=init_spent)
+    return SequenceResult(name, dataset.name, ious, preds, inits, spent, tracked, energy, init_seconds=init_spent,
+                          segment_seconds=seconds)

@@ -6,7 +6,10 @@ Examples:
   dvsot bench --tracker kcf --data 'runs/*.h5' --split any --out runs/bench-kcf
 
 Segments that count: see benchmarks/protocol.py (initialisation segments and segments without
-ground truth never count; a failure, IoU < 0.5, re-initialises on the next segment).
+ground truth never count; a failure, IoU < 0.5, re-initialises on the next segment). --protocol ope
+runs one pass without re-initialisation instead and reports success AUC and precision at 20 px
+(benchmarks/ope.py). Either way <out>/<tracker>/ gets per-sequence boxes, times and (re-initialising
+protocol) VOT trajectories (benchmarks/results.py).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
@@ -58,6 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
                    help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05 "
                         "(checked before the run)")
+    p.add_argument("--protocol", choices=["ar", "ope"], default="ar",
+                   help="ar: the paper's A / R / ARscore with re-initialisation (default); ope: one pass, "
+                        "success AUC and precision at 20 px")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -75,7 +81,8 @@ class Plan:
     tasks: list[tuple[str, str]] = field(default_factory=list)
 
 
-def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None, options: dict | None = None):
+def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None, options: dict | None = None,
+             protocol: str = "ar"):
     """Worker: run one tracker on one file (in a fresh process when parallel)."""
     from benchmarks.protocol import SequenceResult, one_line, run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
@@ -94,7 +101,12 @@ def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | No
                                   error=one_line(exc))
         if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
             sys.modules["torch"].set_num_threads(1)
-        return run_sequence(instance, ds, tracker, max_segments=max_segments)
+        result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
+        if protocol == "ope":
+            from benchmarks.ope import add_centre_errors
+
+            add_centre_errors(result, ds.segment_boxes())
+        return result
 
 
 def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
@@ -226,7 +238,8 @@ def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
     """{file name in --out: the flag that asks for it}."""
     from benchmarks.tables import TABLE_FILES
 
-    names = {n: "--out" for n in TABLE_FILES.values()}
+    ope = ["ope.json", "ope.md", "success_plot.png", "precision_plot.png"]
+    names = {n: "--out" for n in (ope if args.protocol == "ope" else TABLE_FILES.values())}
     names[MANIFEST] = "--out (the run's manifest)"
     if args.plots:
         names["iou_over_time.png"] = "--plots"
@@ -276,6 +289,8 @@ def plan(args: argparse.Namespace) -> Plan:
 
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
+    from dvsot.names import file_stem
+    from dvsot.outputs import output_dir
 
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
@@ -302,6 +317,8 @@ def plan(args: argparse.Namespace) -> Plan:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
         check_video(seq, sequences[seq])
     check_outputs(out_dir, _output_names(args, sctn), files)
+    for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
+        output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, args.option)
     tasks = [(t, str(f)) for t in trackers for f in files]
@@ -322,13 +339,14 @@ def track(p: Plan, args: argparse.Namespace) -> list:
     if p.jobs == 1:
         for k, (t, f) in enumerate(p.tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t))
+            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t), args.protocol)
             bar.update(1)
     else:
         # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well); workers die with
         # this process, and on any exception here they are stopped at once (dvsot.workers)
         with WorkerPool(p.jobs) as pool:
-            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, p.options.get(t)): k
+            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, p.options.get(t),
+                                   args.protocol): k
                        for k, (t, f) in enumerate(p.tasks)}
             for fut in as_completed(futures):
                 results[futures[fut]] = result(fut)
@@ -350,9 +368,18 @@ def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: lis
 def _write_all(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
     import json
 
+    from benchmarks.results import write_sequence_files
     from benchmarks.tables import write_tables, write_text_atomic
 
-    paths = write_tables(summary, p.out_dir)
+    if args.protocol == "ope":
+        from benchmarks.ope import write_ope
+
+        paths = {f"ope:{x.name}": x for x in write_ope(summary, p.out_dir)}
+    else:
+        paths = write_tables(summary, p.out_dir)
+    files = write_sequence_files(results, p.out_dir, vot=args.protocol != "ope")
+    if files:
+        paths["per-sequence"] = f"{p.out_dir}/<tracker>/ ({len(files)} files)"
     if args.plots:
         from benchmarks.pictures import plot_iou_over_time
 
@@ -380,13 +407,18 @@ def run(args: argparse.Namespace) -> int:
 
     p = plan(args)
     results = track(p, args)
-    summary = summarise(results)
+    if args.protocol == "ope":
+        from benchmarks.ope import format_ope, summarise_ope
+
+        summary = summarise_ope(results)
+    else:
+        summary = summarise(results)
     energy = None
     if p.model is not None and not args.no_energy:
         from benchmarks.energy_table import energy_table
 
         energy = energy_table(p.model, p.files)  # computed before writing: a crash here leaves --out as it was
-    print(terminal(summary))
+    print(format_ope(summary) if args.protocol == "ope" else terminal(summary))
     if energy is not None:
         from benchmarks.energy_table import format_energy_table
 
