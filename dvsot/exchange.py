@@ -9,7 +9,6 @@ complete, so bad input or a crash leaves nothing behind.
 from __future__ import annotations
 
 import os
-from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -167,7 +166,7 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
                    boxes: bool = True) -> list[Path]:
     """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written."""
     from dvsot.dataset import Dataset
-    from dvsot.outputs import replacing
+    from dvsot.outputs import replacing, run_outputs
 
     out = Path(out_path)
     event_format(out, "-o")
@@ -181,9 +180,10 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
     if len(t) and t[0] < 0:
         raise UserError(f"{dataset_path}: /t_offset {offset} makes timestamps negative, which event files cannot hold")
     x, y, p = (np.concatenate([getattr(b, k) for b in parts]) if parts else np.empty(0, np.uint16) for k in "xyp")
-    with ExitStack() as stack:  # both written to temp names, renamed when both are complete
-        tmp_events = stack.enter_context(replacing(out))
-        write_event_file(tmp_events, t, x, y, p, width, height, evt_version)
+    with run_outputs():  # both written to temp names, renamed together when both are complete
+        with replacing(out) as tmp_events:
+            write_event_file(tmp_events, t, x, y, p, width, height, evt_version)
         if boxes:
-            write_box_csv(stack.enter_context(replacing(boxes_path(out))), track.t + offset, track.xywh)
+            with replacing(boxes_path(out)) as tmp_boxes:
+                write_box_csv(tmp_boxes, track.t + offset, track.xywh)
     return [out] + ([boxes_path(out)] if boxes else [])
