@@ -114,3 +114,31 @@ def test_scheduler_and_worker_started_as_processes(tmp_path):
     assert rec["attempts"][0]["render_threads"] == cores()  # the only worker on its machine gets every core
     with Dataset(tmp_path / "o" / "tiny_00000.h5") as ds:
         assert ds.num_events > 0
+
+
+def test_local_workers_die_with_a_killed_head(tmp_path):
+    import psutil
+
+    tpl = tmp_path / "tiny.yaml"
+    tpl.write_text(TEMPLATE.replace("duration_s: 0.05", "duration_s: 3.0").replace("t: 0.05", "t: 3.0"))
+    out = tmp_path / "out"
+    head = subprocess.Popen([sys.executable, "-m", "dvsot.cli", "generate", str(tpl), "--variants", "2",
+                             "--out-dir", str(out), "--scheduler", "local:2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    kids = []
+    try:
+        for _ in range(600):  # until both workers are rendering (their temp files exist), at most 60 s
+            if len(list(out.glob(".*.tmp-*"))) >= 2:
+                break
+            assert head.poll() is None, "the run ended before it could be killed"
+            psutil.Process(head.pid).children()  # the head is alive
+            __import__("time").sleep(0.1)
+        kids = psutil.Process(head.pid).children(recursive=True)
+        assert len(kids) >= 2
+    finally:
+        head.kill()
+        head.wait()
+    gone, alive = psutil.wait_procs(kids, timeout=20)
+    for p in alive:
+        p.kill()
+    assert not alive, [p.cmdline() for p in alive]
