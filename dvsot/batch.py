@@ -12,6 +12,7 @@ from typing import Callable
 from dvsot.config import SceneConfig, asset_paths, load_scene, read_yaml
 from dvsot.errors import UserError
 from dvsot.outputs import output_dir, output_file
+from dvsot.preview import check_preview_size
 from dvsot.scale import Manifest, SceneTask, run_scenes
 from dvsot.templates import draw_variants, is_template, read_template, validate_variant
 
@@ -53,6 +54,8 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
     for v in draw_variants(tpl, count):
         cfg = validate_variant(tpl, v, dict(overrides or {}), note=f"(variant {v.index})")
         _warn(cfg, f"{template} (variant {v.index})", warn)
+        if preview:
+            check_preview_size(f"{template} (variant {v.index})", cfg)
         inputs += asset_paths(cfg)
         tasks.append(SceneTask(name=v.name, text=v.text(Path(template).name), source=f"{template} (variant {v.index})",
                                base_dir=str(tpl.base_dir), output=str(out / f"{v.name}.h5"),
@@ -70,6 +73,8 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
     for p in paths:
         cfg = load_plain_scene(p, dict(overrides or {}))
         _warn(cfg, str(p), warn)
+        if preview:
+            check_preview_size(str(p), cfg)
         inputs += [Path(p), *asset_paths(cfg)]
         tasks.append(SceneTask(name=cfg.name, text=Path(p).read_text(), source=str(p),
                                base_dir=str(Path(p).parent.resolve()), output=str(out / f"{cfg.name}.h5"),

@@ -86,13 +86,18 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             from dvsot.scene_checks import visibility_warnings
 
             warnings = visibility_warnings(cfg)  # here, not at the head: ~0.1 s a scene
-            summary = generate(cfg, task.output, task.text, progress=False)
-            if task.preview:
-                from dvsot.preview import write_preview
+            from dvsot.generate import run_manifest
+            from dvsot.outputs import run_outputs
 
-                gif = Path(task.output).with_suffix(".gif")
-                write_preview(task.output, gif, max_segments=200)
-                summary["preview"] = str(gif)
+            # the dataset file and its preview are renamed into place together, or neither (dvsot.outputs)
+            with run_outputs(run_manifest(task.output) if task.preview else None) as run:
+                summary = generate(cfg, task.output, task.text, progress=False)
+                if task.preview:
+                    from dvsot.preview import PREVIEW_SEGMENTS, write_preview
+
+                    gif = Path(task.output).with_suffix(".gif")
+                    write_preview(run.staged(task.output), gif, max_segments=PREVIEW_SEGMENTS)
+                    summary["preview"] = str(gif)
             summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
             summary["render_threads"] = cfg.render.threads
             summary["warnings"] = warnings

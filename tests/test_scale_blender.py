@@ -128,7 +128,7 @@ def test_local_workers_die_with_a_killed_head(tmp_path):
     kids = []
     try:
         for _ in range(600):  # until both workers are rendering (their temp files exist), at most 60 s
-            if len(list(out.glob(".*.tmp-*"))) >= 2:
+            if len(list(out.glob(".tiny_*.h5.tmp~*"))) >= 2:  # dvsot.staging.temp_name
                 break
             assert head.poll() is None, "the run ended before it could be killed"
             psutil.Process(head.pid).children()  # the head is alive

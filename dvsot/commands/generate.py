@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import argparse
 
-PREVIEW_SEGMENTS = 200  # frames of a --preview GIF, one per segment
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot generate`."""
@@ -72,7 +70,7 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
     with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
         summary = generate(cfg, out_path, Path(scene_path).read_text(), progress=not quiet, keep_frames=keep_frames)
         if preview:
-            from dvsot.preview import write_preview
+            from dvsot.preview import PREVIEW_SEGMENTS, write_preview
 
             gif = Path(out_path).with_suffix(".gif")
             write_preview(run.staged(out_path), gif, max_segments=PREVIEW_SEGMENTS)
@@ -82,13 +80,9 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
 
 def _check_preview_size(path: str, cfg) -> None:
     """UserError before rendering if the --preview of a scene would hold more frames in memory than allowed."""
-    from dvsot.errors import UserError
-    from dvsot.validate import preview_problem
+    from dvsot.preview import check_preview_size
 
-    segments = int(cfg.duration_s * 1e6) // int(round(cfg.segment_ms * 1000))
-    problem = preview_problem(cfg.sensor.width, cfg.sensor.height, min(PREVIEW_SEGMENTS, segments))
-    if problem:
-        raise UserError(f"{path}: --preview: {problem}")
+    check_preview_size(path, cfg)
 
 
 def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
