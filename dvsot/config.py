@@ -9,14 +9,12 @@ file, the field, the YAML line and what is wrong.
 from __future__ import annotations
 
 import hashlib
-import re
 from pathlib import Path
 from typing import Annotated, Any, Callable, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, ValidationError, model_validator
 
-from dvsot import validate
+from dvsot import validate, yamlio
 from dvsot.errors import UserError
 from dvsot.events import EventParams
 from dvsot.scene_checks import look_at_problems
@@ -294,11 +292,11 @@ def _chosen_error(errors: list[dict]) -> dict:
     return next((e for e in same if not e["type"].endswith("_type")), errors[0])
 
 
-def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
+def _line_of(node: yamlio.Node | None, loc: tuple) -> int | None:
     """The 1-based YAML line of the field at loc (or of its nearest existing parent)."""
     line = node.start_mark.line + 1 if node is not None else None
     for key in loc:
-        if isinstance(node, yaml.MappingNode):
+        if isinstance(node, yamlio.MappingNode):
             found = None
             for k, v in node.value:
                 if k.value == key:
@@ -307,7 +305,7 @@ def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
             if found is None:
                 break
             line, node = found[0].start_mark.line + 1, found[1]
-        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+        elif isinstance(node, yamlio.SequenceNode) and isinstance(key, int) and key < len(node.value):
             node = node.value[key]
             line = node.start_mark.line + 1
         else:
@@ -324,15 +322,16 @@ def read_yaml(text: str, source: str = "<scene>") -> tuple[Any, Locate]:
     if problem:
         raise UserError(f"{source}: {problem}")
     try:
-        node = yaml.compose(text)
+        node = yamlio.compose(text)
         problem = validate.yaml_nodes_problem(node)  # before anything expands the aliases
         if problem:
             raise UserError(f"{source}: {problem}")
-        data = yaml.load(text, Loader=_UniqueKeyLoader)
-    except _DuplicateKey as exc:
-        raise UserError(f"{source}:{exc.problem_mark.line + 1}: field '{exc.key}' is given twice "
-                        f"(first on line {exc.first_line})") from None
-    except yaml.YAMLError as exc:
+        twice = yamlio.duplicate_key(node)  # YAML forbids it; a plain loader would keep the last silently
+        if twice:
+            key, first, again = twice
+            raise UserError(f"{source}:{again}: field '{key}' is given twice (first on line {first})")
+        data = yamlio.load(text)
+    except yamlio.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f":{mark.line + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
@@ -382,39 +381,9 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
     return cfg
 
 
-class _DuplicateKey(yaml.constructor.ConstructorError):
-    def __init__(self, key: str, first: yaml.Node, again: yaml.Node) -> None:
-        super().__init__(None, None, f"duplicate key {key!r}", again.start_mark)
-        self.key, self.first_line = key, first.start_mark.line + 1
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """The safe loader, refusing a key given twice in one mapping (plain YAML keeps the last silently)."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
-        seen: dict = {}
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            if isinstance(key, (str, int, float, bool)) and key in seen:
-                raise _DuplicateKey(str(key), seen[key], key_node)
-            seen[key] = key_node
-        return super().construct_mapping(node, deep)
-
-
-# YAML 1.1 (PyYAML) reads 1e-3 and 2.0e6 as strings; read them as the numbers they are, as YAML 1.2 does
-_UniqueKeyLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"""^(?:[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+
-                 |[-+]?[0-9][0-9_]*\.[0-9_]*
-                 |[-+]?\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-                 |[-+]?\.(?:inf|Inf|INF)
-                 |\.(?:nan|NaN|NAN))$""", re.X),
-    list("-+0123456789."))
-
-
 def yaml_value(text: str) -> Any:
     """One YAML value as a scene file would read it (for KEY=VALUE overrides on a command line)."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)
+    return yamlio.load(text)
 
 
 def _set_path(data: dict, dotted: str, value: Any, source: str, locate: Locate) -> None:

@@ -113,19 +113,20 @@ def preview_problem(width: int, height: int, frames: int) -> str | None:
 def yaml_text_problem(text: str) -> str | None:
     """A message if YAML text is larger than MAX_SCENE_BYTES or nested deeper than MAX_YAML_DEPTH, or None.
 
-    Runs PyYAML's scanner (a loop with a stack, no recursion) before any parser that recurses per level.
+    Runs the YAML scanner (a loop with a stack, no recursion) before any parser that recurses per level.
     """
-    import yaml
+    from dvsot import yamlio
+    from dvsot.yamlio import tokens
 
     size = len(text.encode("utf-8", "replace"))
     if size > MAX_SCENE_BYTES:
         return f"{size} bytes, more than the bound of {MAX_SCENE_BYTES} bytes (1 MB) for a scene file"
-    opening = (yaml.BlockSequenceStartToken, yaml.BlockMappingStartToken, yaml.FlowSequenceStartToken,
-               yaml.FlowMappingStartToken)
-    closing = (yaml.BlockEndToken, yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken)
+    opening = (tokens.BlockSequenceStartToken, tokens.BlockMappingStartToken, tokens.FlowSequenceStartToken,
+               tokens.FlowMappingStartToken)
+    closing = (tokens.BlockEndToken, tokens.FlowSequenceEndToken, tokens.FlowMappingEndToken)
     depth = 0
     try:
-        for token in yaml.scan(text):
+        for token in yamlio.scan(text):
             if isinstance(token, opening):
                 depth += 1
                 if depth > MAX_YAML_DEPTH:
@@ -133,22 +134,22 @@ def yaml_text_problem(text: str) -> str | None:
                             f"(the bound for a scene file)")
             elif isinstance(token, closing):
                 depth -= 1
-    except yaml.YAMLError:
+    except yamlio.YAMLError:
         return None  # a syntax error: the parser reports it with its line
     return None
 
 
 def yaml_nodes_problem(node: Any) -> str | None:
     """A message if a composed YAML node graph holds more than MAX_YAML_NODES values once aliases are expanded."""
-    import yaml
+    from dvsot.yamlio import MappingNode, SequenceNode
 
     sizes: dict[int, int] = {}
 
     def size(n) -> int:  # memoised: an alias shares its anchor's node, counted once per use
         if id(n) not in sizes:
-            if isinstance(n, yaml.MappingNode):
+            if isinstance(n, MappingNode):
                 children = [c for pair in n.value for c in pair]
-            elif isinstance(n, yaml.SequenceNode):
+            elif isinstance(n, SequenceNode):
                 children = n.value
             else:
                 children = []
