@@ -24,6 +24,8 @@ reason; SCTNTracker then runs the dense path.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import torch
 
@@ -44,11 +46,82 @@ def exact_blocker(model: SCTN) -> str | None:
         return "conv1's kernel must equal its stride and hold at most 32 inputs (2 x k x k)"
     if max(cfg.channels) > 32:
         return "more than 32 channels in a convolution"
+    blocks = summation_blocks(model)
+    if isinstance(blocks, str):
+        return blocks
     return None
 
 
+def summation_blocks(model: SCTN) -> tuple[int, int, int] | str:
+    """Per convolution, the input-channel block by which this machine's torch sums a window (by block, then kernel
+    row, column, channel: oneDNN's order, the block set by the CPU's vector width), found by reproducing a
+    convolution of the dense path's shape bit for bit; or why no order reproduced here matches (a string).
+    fc1..fc3 are checked too: their row sums must not depend on which other rows share the batch."""
+    cfg = model.cfg
+    steps = cfg.steps + cfg.tail_steps
+    batch = steps * DENSE_CHUNK
+    sizes = [cfg.input_size] + cfg.conv_sizes()
+    blocks = []
+    for k, conv in enumerate(model.convs):
+        blk = _conv_block(conv.in_channels, conv.out_channels, conv.kernel_size[0], conv.stride[0], sizes[k],
+                          conv.bias is not None, batch, torch.get_num_threads())
+        if blk is None or (k == 0 and blk < conv.in_channels):
+            return f"conv{k + 1}: torch sums its windows in an order not reproduced here"
+        blocks.append(blk)
+    for k, fc in enumerate(model.fcs):
+        if not _rows_independent(fc.in_features, fc.out_features, fc.bias is not None, batch, torch.get_num_threads()):
+            return f"fc{k + 1}: torch's sums of a row depend on the other rows of the batch"
+    return tuple(blocks)
+
+
+DENSE_CHUNK = 64  # candidates per batch of the dense path
+
+
+@functools.lru_cache(maxsize=64)
+def _conv_block(c_in: int, c_out: int, k: int, stride: int, size: int, bias: bool, batch: int,
+                threads: int) -> int | None:
+    """The input-channel block of torch's window sums for a convolution of this shape on a batch of `batch`, or None."""
+    gen = torch.Generator().manual_seed(12)
+    w = torch.randn(c_out, c_in, k, k, generator=gen)
+    x = (torch.rand(batch, c_in, size, size, generator=gen) < 0.4).float()
+    with torch.no_grad():
+        ref = torch.nn.functional.conv2d(x, w, torch.zeros(c_out) if bias else None, stride)[:8, 0].numpy()
+    xs, w0 = x[:8].numpy(), w[0].numpy()
+    out = ref.shape[-1]
+    for blk in sorted({c_in, 16, 8, 4, 2, 1} - {b for b in (16, 8, 4, 2, 1) if b > c_in}, reverse=True):
+        acc = np.zeros_like(ref)
+        for c0 in range(0, c_in, blk):
+            for ky in range(k):
+                for kx in range(k):
+                    for c in range(c0, min(c0 + blk, c_in)):
+                        window = xs[:, c, ky:ky + stride * (out - 1) + 1:stride, kx:kx + stride * (out - 1) + 1:stride]
+                        acc = acc + window * w0[c, ky, kx]
+        if np.array_equal(acc, ref):
+            return blk
+    return None
+
+
+@functools.lru_cache(maxsize=64)
+def _rows_independent(n_in: int, n_out: int, bias: bool, batch: int, threads: int) -> bool:
+    """Whether torch's linear layer of this shape gives each row the same sums in any batch of MIN_ROWS rows or more
+    (MKL takes another path for fewer: 1-15 rows differ in the last bit here)."""
+    gen = torch.Generator().manual_seed(13)
+    layer = torch.nn.Linear(n_in, n_out, bias=bias)
+    with torch.no_grad():
+        layer.weight.copy_(torch.randn(n_out, n_in, generator=gen))
+        if bias:
+            layer.bias.zero_()
+        x = (torch.rand(4 * batch, n_in, generator=gen) < 0.1).float()
+        ref = layer(x[:batch])
+        return torch.equal(layer(x)[:batch], ref) and all(
+            torch.equal(layer(x[:m]), ref[:m]) for m in (MIN_ROWS, MIN_ROWS + 1, 31, 64, 100, 257) if m <= batch)
+
+
+MIN_ROWS = 16  # fc1 runs on at least this many rows (silent ones added), as the dense path's batches have
+
+
 def dense_candidate_voltages(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray,
-                             chunk: int = 64) -> torch.Tensor:
+                             chunk: int = DENSE_CHUNK) -> torch.Tensor:
     """Output voltages (N, T + tail, 2) of N candidate boxes the dense way: encode_boxes and the whole network,
     `chunk` candidates at a time (the reference candidate_voltages reproduces; any model)."""
     cfg = model.cfg
@@ -88,6 +161,7 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     reason = exact_blocker(model)
     if reason is not None:
         raise ValueError(f"sparse per-candidate evaluation is not exact for this model: {reason}")
+    blocks = summation_blocks(model)
     cfg = model.cfg
     size, steps = cfg.input_size, cfg.steps
     total = steps + cfg.tail_steps
@@ -103,7 +177,7 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     ex, ey, ep, es, tile_start, tiles = _segment_events(events, t0_us, geom, steps, cfg.step_us)
     sizes = [size] + cfg.conv_sizes()
     c3 = cfg.channels[2]
-    rows3 = np.empty((n * total, c3 * sizes[3] ** 2), np.float32)  # conv3's spikes of the rows that hold any
+    rows3 = np.empty((max(n * total, MIN_ROWS), c3 * sizes[3] ** 2), np.float32)  # conv3's rows that spike
     row_of = np.full(n * total, -1, np.int64)  # (candidate, step) -> its row of rows3
     counts = np.zeros((n, 4, 2), np.float64)  # per layer input .. conv3: spikes, ACs
     fans = [np.ascontiguousarray(conv_fanout(model.convs[k], (sizes[k], sizes[k])).numpy().reshape(-1), np.float64)
@@ -115,28 +189,23 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     consts = [np.ascontiguousarray(np.tile(np.stack(model.neurons[k]._inference_constants()), (1, sizes[k + 1] ** 2)))
               for k in range(3)]
     used = conv_layers(ex, ey, ep, es, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
-                        *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *consts,
+                        *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *blocks[1:], *consts,
                         np.float32(model.neurons[0].theta), total, record, *fans, BITS, NBITS, rows3, row_of,
                        counts)
-    with torch.no_grad():
-        fc1 = model.fcs[0]
-        current = torch.zeros(n * total, fc1.out_features)
-        if used:
-            # a row's sums do not depend on the other rows of the batch (a test holds it), so the silent
-            # rows, whose current is 0, are left out
-            current[torch.from_numpy(np.flatnonzero(row_of >= 0))] = fc1(torch.from_numpy(rows3[:used]))[
-                torch.from_numpy(row_of[row_of >= 0])]
-        h, _ = model.neurons[3](current.view(n, total, -1).transpose(0, 1))  # (T, N, width), as the dense path
-        fc_spikes = [h]
-        h, _ = model.neurons[4](model.fcs[1](h))
-        fc_spikes.append(h)
-        out, v = model.neurons[5](model.fcs[2](h))
+    last = n % DENSE_CHUNK
+    if n > DENSE_CHUNK and 0 < last * total < MIN_ROWS:  # the dense path's last batch is that small: so is ours
+        parts = [_fc_layers(model, rows3, row_of[:(n - last) * total], used, total),
+                 _fc_layers(model, rows3, row_of[(n - last) * total:], used, total)]
+        fc_spikes = [torch.cat([p[k] for p in parts], dim=1) for k in range(2)]
+        out, v = torch.cat([p[3] for p in parts], dim=1), torch.cat([p[4] for p in parts], dim=1)
+    else:
+        *fc_spikes, out, v = _fc_layers(model, rows3, row_of, used, total)
     volts = v.transpose(0, 1)
     if not record:
         return volts, None
     spikes = {name: counts[:, k, 0].copy() for k, name in enumerate(LAYER_NAMES[:4])}
     ops = {name: counts[:, k, 1].copy() for k, name in enumerate(LAYER_NAMES[:3])}
-    ops["conv3"] = spikes["conv3"] * fc1.out_features
+    ops["conv3"] = spikes["conv3"] * model.fcs[0].out_features
     for k, (name, s) in enumerate(zip(LAYER_NAMES[4:], fc_spikes + [out])):
         spikes[name] = s.sum(dim=(0, 2)).double().numpy()
         ops[name] = spikes[name] * (model.fcs[k + 1].out_features if k < 2 else 0)
@@ -145,6 +214,32 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
         conv3[torch.from_numpy(np.flatnonzero(row_of >= 0))] = torch.from_numpy(rows3[row_of[row_of >= 0]])
     maps = {"conv3": conv3.view(n, total, -1).transpose(0, 1), "fc1": fc_spikes[0], "fc2": fc_spikes[1], "output": out}
     return volts, {"spikes": spikes, "ac_ops": ops, "maps": maps}
+
+
+def _fc_layers(model: SCTN, rows3: np.ndarray, row_of: np.ndarray, used: int, total: int) -> list[torch.Tensor]:
+    """fc1, fc2 and the output layer, by the model's own layers, for the candidates of row_of (their (candidate,
+    step) -> row of conv3's spikes rows3, or -1 where conv3 is silent): spikes of fc1, fc2, the output, and the
+    output voltages, each (T, N, width)."""
+    n = len(row_of) // total
+    fc1 = model.fcs[0]
+    mine = row_of >= 0
+    with torch.no_grad():
+        if n * total < MIN_ROWS:  # the dense path's batch exactly: MKL sums a batch this small in another order
+            conv3 = np.zeros((n * total, rows3.shape[1]), np.float32)
+            conv3[mine] = rows3[row_of[mine]]
+            current = fc1(torch.from_numpy(conv3))
+        else:
+            # a row's sums do not depend on the other rows of a batch of MIN_ROWS or more (summation_blocks checks
+            # it), so only the rows in which conv3 fired are run; the others' current is 0
+            current = torch.zeros(n * total, fc1.out_features)
+            if mine.any():
+                rows3[used:MIN_ROWS] = 0
+                sums = fc1(torch.from_numpy(rows3[:max(used, MIN_ROWS)]))
+                current[torch.from_numpy(np.flatnonzero(mine))] = sums[torch.from_numpy(row_of[mine])]
+        h1, _ = model.neurons[3](current.view(n, total, -1).transpose(0, 1))  # (T, N, width), as the dense path
+        h2, _ = model.neurons[4](model.fcs[1](h1))
+        out, v = model.neurons[5](model.fcs[2](h2))
+    return [h1, h2, out, v]
 
 
 def _segment_events(events: EventBatch, t0_us: int, geom: np.ndarray, steps: int, step_us: int):

@@ -121,16 +121,49 @@ def _spike_lists(fired: np.ndarray, width: int, n: int, ch: int, steps: int, bit
 
 
 @numba.njit(cache=True)
-def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, consts, theta, steps,
+def _window_currents(cells_out, n_out, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, steps, width,
+                     cur) -> None:  # pragma: no cover - compiled
+    """The currents of output cells cells_out[:n_out] into cur (steps x width flat, cell j at columns j ch ..):
+    the weight rows of the spikes in each window (see _conv_cells), in torch's order."""
+    c_in = w.shape[0] // (k * k * ch)
+    for t in range(steps):
+        cur[t * width:t * width + n_out * ch] = 0
+    for j in range(n_out):
+        cell = cells_out[j]
+        oy, ox = cell // s_out, cell % s_out
+        col = j * ch
+        for c0 in range(0, c_in, blk):
+            for ky in range(k):
+                for kx in range(k):
+                    src = slot_in[(oy * st + ky) * s_in + ox * st + kx]
+                    if src < 0:
+                        continue
+                    base = (ky * k + kx) * c_in
+                    for q in range(start_in[src], start_in[src + 1]):
+                        e = spikes_in[q]
+                        if (e & 31) < c0 or (e & 31) >= c0 + blk:
+                            continue
+                        at, row = (e >> 5) * width + col, (base + (e & 31)) * ch
+                        if ch == 16:  # the usual widths, without the loop of _add_row
+                            _vadd8(cur, at, w, row)
+                            _vadd8(cur, at + 8, w, row + 8)
+                        elif ch == 8:
+                            _vadd8(cur, at, w, row)
+                        else:
+                            _add_row(cur, at, w, base + (e & 31), ch)
+
+
+@numba.njit(cache=True)
+def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, consts, theta, steps,
                 width, cur, fired, state, slot_out, cells_out, start_out, spikes_out, bits,
                 nbits) -> int:  # pragma: no cover - compiled
     """One spiking convolution, on the output cells whose window holds a spike of the layer below.
 
     Input: cells_in[:n_in] (map cell indices), slot_in (map cell -> its index j, or -1) and their
     spike lists (start_in, spikes_in; see _spike_lists). w (k k C_in x C_out, flat) rows in (kernel row,
-    column, input channel) order, the order torch sums a window in; a window's spikes are added in that
-    order per step. Output likewise (cells_out, slot_out, start_out, spikes_out); returns their number."""
-    c_in = w.shape[0] // (k * k * ch)
+    column, input channel) order. A window's spikes are added per step in the order torch sums it: by
+    blocks of blk input channels, within a block by kernel row, column, channel (blk >= C_in: one block).
+    Output likewise (cells_out, slot_out, start_out, spikes_out); returns their number."""
     n_out = 0
     for j in range(n_in):
         if start_in[j + 1] == start_in[j]:
@@ -143,28 +176,8 @@ def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st
                     slot_out[oy * s_out + ox] = n_out
                     cells_out[n_out] = oy * s_out + ox
                     n_out += 1
-    for t in range(steps):
-        cur[t * width:t * width + n_out * ch] = 0
-    for j in range(n_out):
-        cell = cells_out[j]
-        oy, ox = cell // s_out, cell % s_out
-        col = j * ch
-        for ky in range(k):
-            for kx in range(k):
-                src = slot_in[(oy * st + ky) * s_in + ox * st + kx]
-                if src < 0:
-                    continue
-                base = (ky * k + kx) * c_in
-                for q in range(start_in[src], start_in[src + 1]):
-                    e = spikes_in[q]
-                    at, row = (e >> 5) * width + col, (base + (e & 31)) * ch
-                    if ch == 16:  # the usual widths, without the loop of _add_row
-                        _vadd8(cur, at, w, row)
-                        _vadd8(cur, at + 8, w, row + 8)
-                    elif ch == 8:
-                        _vadd8(cur, at, w, row)
-                    else:
-                        _add_row(cur, at, w, base + (e & 31), ch)
+    _window_currents(cells_out, n_out, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, steps, width,
+                     cur)
     _clif_flat(cur, width, n_out * ch, steps, consts, theta, fired, state)
     _spike_lists(fired, width, n_out, ch, steps, bits, nbits, start_out, spikes_out)
     return n_out
@@ -172,15 +185,16 @@ def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st
 
 @numba.njit(cache=True)
 def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3, k1, k2, k3, w1, w2, w3, ch1, ch2,
-                ch3, st2, st3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, bits, nbits, rows3, row_of,
-                counts) -> int:  # pragma: no cover - compiled
+                ch3, st2, st3, blk2, blk3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, bits, nbits, rows3,
+                row_of, counts) -> int:  # pragma: no cover - compiled
     """Input and the three spiking convolutions of every candidate (see the module docstring).
 
     ex, ey, ep, es (E,): event pixel centres, polarity, step, grouped by sensor tile (tile_start: CSR
     starts; tiles (N, 5): per box the first and last tile column and row to read, and the tile columns);
     geom (N, 7) from box_canvas; s1..s3 the conv maps' sizes, k1..k3 their kernels, ch1..ch3 their
     channels; w1, w2, w3 flat (k k C_in x C_out) in (kernel row, column, input channel; polarity for w1)
-    x output channel order; c1..c3 (3, cells x C) d_m, d_s, V0 per neuron of a layer's cells side by
+    x output channel order; blk2, blk3 the input-channel blocks of conv2's and conv3's sums (see _conv_cells);
+    c1..c3 (3, cells x C) d_m, d_s, V0 per neuron of a layer's cells side by
     side. Writes conv3's spikes of each (candidate, step) that holds any to a row of rows3 (torch's
     flatten order) and that row's index to row_of[candidate * steps + step]; returns the rows used.
     With record, per candidate and layer (input .. conv3) the spike count and (input .. conv2) the ACs
@@ -246,10 +260,10 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
                         _add_row(cur, t * width + j * ch1, w1, 8 * byte + bits[value, q], ch1)
         _clif_flat(cur, width, n1 * ch1, steps, c1, theta, fired, state)
         _spike_lists(fired, width, n1, ch1, steps, bits, nbits, start1, spikes1)
-        n2 = _conv_cells(cells1, n1, slot1, start1, spikes1, s1, s2, k2, st2, w2, ch2, c2, theta, steps, width, cur,
-                         fired, state, slot2, cells2, start2, spikes2, bits, nbits)
-        n3 = _conv_cells(cells2, n2, slot2, start2, spikes2, s2, s3, k3, st3, w3, ch3, c3, theta, steps, width, cur,
-                         fired, state, slot3, cells3, start3, spikes3_list, bits, nbits)
+        n2 = _conv_cells(cells1, n1, slot1, start1, spikes1, s1, s2, k2, st2, w2, ch2, blk2, c2, theta, steps, width,
+                         cur, fired, state, slot2, cells2, start2, spikes2, bits, nbits)
+        n3 = _conv_cells(cells2, n2, slot2, start2, spikes2, s2, s3, k3, st3, w3, ch3, blk3, c3, theta, steps, width,
+                         cur, fired, state, slot3, cells3, start3, spikes3_list, bits, nbits)
         for j in range(n3):
             cell = cells3[j]
             for q in range(start3[j], start3[j + 1]):
@@ -285,3 +299,21 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
         for j in range(n3):
             slot3[cells3[j]] = -1
     return used
+
+
+def window_currents(spikes: np.ndarray, weight: np.ndarray, stride: int, blk: int) -> np.ndarray:
+    """A convolution of binary spikes (T, C_in, H, W) with weight (C_out, C_in, k, k), no bias, summed as the
+    event-driven path sums it (input-channel blocks of blk): currents (T, C_out, H', W') float32."""
+    steps, c_in, size, _ = spikes.shape
+    c_out, k = weight.shape[0], weight.shape[2]
+    out = (size - k) // stride + 1
+    on = np.ascontiguousarray(spikes.transpose(2, 3, 0, 1).reshape(size * size, steps * c_in)) != 0
+    start = np.concatenate([[0], np.cumsum(on.sum(axis=1))]).astype(np.int64)
+    cell, code = np.nonzero(on)  # by cell, then step, then channel
+    lists = ((code // c_in) * 32 + code % c_in).astype(np.int64)
+    width = out * out * c_out
+    cur = np.zeros(steps * width, np.float32)
+    w = np.ascontiguousarray(weight.transpose(2, 3, 1, 0).reshape(-1), np.float32)
+    _window_currents(np.arange(out * out, dtype=np.int64), out * out, np.arange(size * size, dtype=np.int64), start,
+                     lists, size, out, k, stride, w, c_out, blk, steps, width, cur)
+    return cur.reshape(steps, out, out, c_out).transpose(0, 3, 1, 2)

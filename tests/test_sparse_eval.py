@@ -12,7 +12,8 @@ from sctn.energy import LAYER_NAMES, layer_ops
 from sctn.network import SCTN, NetworkConfig
 from sctn.samples import propose
 from sctn.sparse_eval import (candidate_record, candidate_voltages, dense_candidate_voltages, exact_blocker,
-                              per_candidate_voltages)
+                              per_candidate_voltages, summation_blocks)
+from sctn.sparse_kernels import window_currents
 
 torch.set_num_threads(1)
 DATA = Path(__file__).resolve().parents[1] / "data" / "dvsot21"
@@ -71,6 +72,7 @@ def _check_equal(net: SCTN, events: EventBatch, boxes: np.ndarray, t0_us: int = 
         v_dense, spikes = net.forward_record(x)
     assert v.shape == v_dense.shape
     np.testing.assert_allclose(v.numpy(), v_dense.numpy(), rtol=0, atol=1e-5)
+    assert torch.equal(v, v_dense)  # bit for bit: the same sums in the same order
     t, n = spikes[3].shape[:2]
     assert torch.equal(rec["maps"]["conv3"], spikes[3].reshape(t, n, -1))
     for name in ("fc1", "fc2", "output"):
@@ -103,6 +105,66 @@ def test_no_events_no_boxes_and_an_offset_segment():
     e = _events(6)
     shifted = EventBatch(e.x, e.y, e.t + 123_456, e.p)  # events before and after the segment are left out
     _check_equal(net, shifted, boxes, t0_us=123_456 + 2_500)
+
+
+def test_small_batches_are_summed_as_the_dense_path_sums_them():
+    # one candidate (10 rows: MKL's small-batch path) and 65 (the dense path's last batch holds one)
+    net = _net(11, tail_steps=0)
+    events = _events(12)
+    for boxes in (_boxes(13, n=48)[:1], np.concatenate([_boxes(13, n=64), _boxes(14, n=1)])):
+        assert torch.equal(candidate_voltages(net, events, 0, boxes), dense_candidate_voltages(net, events, 0, boxes))
+
+
+def _conv_order_check(net: SCTN) -> tuple[int, ...]:
+    """Assert conv2 and conv3 as the event-driven path sums them equal torch's convolution bit for bit on the dense
+    path's batch shape, and that the other orders do not; return the blocks found."""
+    blocks = summation_blocks(net)
+    assert not isinstance(blocks, str), blocks
+    torch.manual_seed(0)
+    size = [net.cfg.input_size] + net.cfg.conv_sizes()
+    for k in (1, 2):
+        conv = net.convs[k]
+        x = (torch.rand(net.cfg.steps * 64, conv.in_channels, size[k], size[k]) < 0.3).float()
+        with torch.no_grad():
+            ref = torch.nn.functional.conv2d(x, conv.weight, None, conv.stride)[:10].numpy()
+        for blk in (16, 8, 4):
+            mine = window_currents(x[:10].numpy(), conv.weight.detach().numpy(), conv.stride[0], blk)
+            assert np.array_equal(mine, ref) == (min(blk, conv.in_channels) == blocks[k]), (k, blk, blocks)
+    return blocks
+
+
+def test_convolutions_are_summed_in_torchs_order():
+    blocks = _conv_order_check(_net(18, tail_steps=0))  # which blocks depends on the CPU: 16 or 8 for conv3
+    assert blocks[0] == 2 and blocks[1] == 8 and blocks[2] in (8, 16)
+
+
+def test_the_summation_order_follows_the_cpus_vector_width():
+    # oneDNN sums a window by blocks of 16 input channels with AVX-512 and of 8 with AVX2: with the narrower
+    # order imposed the event-driven path must find it and stay exact, or refuse
+    script = """
+import sys, torch
+sys.path.insert(0, {tests!r})
+from test_sparse_eval import _conv_order_check, _net, _events, _boxes
+from sctn.sparse_eval import candidate_voltages, dense_candidate_voltages, exact_blocker
+torch.set_num_threads(1)
+net = _net(15, tail_steps=0)
+reason = exact_blocker(net)
+if reason is None:
+    assert _conv_order_check(net)[2] <= 8
+    v = candidate_voltages(net, _events(16), 0, _boxes(17, n=16))
+    assert torch.equal(v, dense_candidate_voltages(net, _events(16), 0, _boxes(17, n=16)))
+else:
+    assert "order" in reason or "rows" in reason, reason
+print("ok", reason)
+"""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, ONEDNN_MAX_CPU_ISA="AVX2")
+    run = subprocess.run([sys.executable, "-c", script.format(tests=str(Path(__file__).parent))], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and run.stdout.startswith("ok"), run.stdout + run.stderr
 
 
 @pytest.mark.skipif(not (DATA / "woman_cat.h5").is_file(), reason="rendered DVSOT21-style data not present")
