@@ -14,7 +14,7 @@ from pathlib import Path
 
 from benchmarks.metrics import pooled, scores
 from benchmarks.protocol import SequenceResult
-from dvsot.names import latex_text, markdown_cell, one_line  # sequence and tracker names are free text
+from dvsot.names import latex_text, markdown_cell  # sequence and tracker names are free text
 
 ALL = "all"
 
@@ -62,9 +62,9 @@ def _f(v: float | None) -> str:
 def terminal(summary: dict) -> str:
     """A fixed-width table: per tracker an 'A R' row and an ARscore row, plus speed and initialisation time."""
     seqs = _sequences(summary)
-    name_w = max([7] + [len(one_line(t)) for t in summary])
-    col_w = max([13] + [len(one_line(s)) for s in seqs])
-    lines = [" " * name_w + " | " + " | ".join(one_line(s).center(col_w) for s in seqs) + " | seg/s | init s",
+    name_w = max([7] + [len(markdown_cell(t)) for t in summary])
+    col_w = max([13] + [len(markdown_cell(s)) for s in seqs])
+    lines = [" " * name_w + " | " + " | ".join(markdown_cell(s).center(col_w) for s in seqs) + " | seg/s | init s",
              " " * name_w + " | " + " | ".join("A      R".center(col_w) for _ in seqs) + " |       |"]
     lines.append("-" * len(lines[0]))
     for tracker, per_seq in summary.items():
@@ -81,7 +81,7 @@ def terminal(summary: dict) -> str:
                 ar_row.append(f"{_f(cell['A'])}  {_f(cell['R'])}".center(col_w))
                 score_row.append(_f(cell["ARscore"]).center(col_w))
         speed, init = per_seq[ALL]["segments_per_s"], per_seq[ALL]["init_s"]
-        lines.append(one_line(tracker).ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}")
+        lines.append(markdown_cell(tracker).ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}")
         lines.append(" " * name_w + " | " + " | ".join(score_row) + " |       |")
     return "\n".join(lines)
 

@@ -420,7 +420,8 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
         where = f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}'"
         kind = validate.file_kind_problem(full)
         if kind:
-            raise UserError(f"{where}: " + (f"file not found: {full}" if kind == "no such file" else f"{full} {kind}"))
+            raise UserError(f"{where}: " + (f"file not found: {full}" if kind == "no such file" else
+                                          f"{full} {kind}, not a regular file"))
         try:
             read(full.resolve())
         except UserError as exc:

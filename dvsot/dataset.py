@@ -100,6 +100,16 @@ def _encode_attr(value: Any) -> Any:
     return value
 
 
+def _write_attr(attrs: h5py.AttributeManager, key: str, value: Any) -> None:
+    """Store an attribute; text as fixed-length UTF-8, whose bytes sit in the attribute itself: a damaged
+    variable-length string points into a heap, and HDF5 can crash the process following it."""
+    if isinstance(value, str):
+        data = value.encode("utf-8")
+        attrs.create(key, np.array(data, dtype=h5py.string_dtype("utf-8", max(1, len(data)))))
+    else:
+        attrs[key] = value
+
+
 def _decode_attr(value: Any) -> Any:
     """The Python value of an HDF5 attribute: JSON text of containers is parsed back."""
     if isinstance(value, bytes):
@@ -324,9 +334,10 @@ class DatasetWriter:
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
                          ground_truth="annotations" if self.annotated else "rendered")
             for key, value in attrs.items():
-                f.attrs[key] = _encode_attr(value)
+                _write_attr(f.attrs, key, _encode_attr(value))
             # over the values as a reader decodes them, so both sides hash the same thing
-            f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: _decode_attr(v) for k, v in f.attrs.items()})
+            stored = {k: _decode_attr(v) for k, v in f.attrs.items()}
+            _write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
             f.close()
             self._run.done(self.path)
             if self._own_run is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -91,6 +92,12 @@ def run_manifest(out_path: str | Path) -> Path:
     return p.with_name(f".{p.name}.run.json")
 
 
+def _status(show: bool, text: str) -> None:
+    """One progress line on stderr (where the bar goes), when progress is shown."""
+    if show:
+        print(text, file=sys.stderr, flush=True)
+
+
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
              keep_frames: str | Path | None = None) -> dict:
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary."""
@@ -99,7 +106,11 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
     from dvsot.blender import BlenderScene
 
     start = time.perf_counter()
+    # a long scene spends minutes here and in the scene build before its bar appears: say what is going on
+    _status(progress, f"{cfg.name}: planning render times for {cfg.duration_s:g} s of scene "
+                      f"(no point moving more than {cfg.sampling.max_displacement_px:g} px between frames)")
     times = sample_times(cfg)
+    _status(progress, f"{cfg.name}: {len(times)} frames to render; building the Blender scene")
     t_us = np.rint(times * 1e6).astype(np.int64)
     W, H = cfg.sensor.width, cfg.sensor.height
     params = cfg.event_params()

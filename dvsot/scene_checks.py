@@ -19,26 +19,48 @@ def _times(keyframe_times: list[float], duration_s: float) -> np.ndarray:
     return np.unique(t)
 
 
+def _closest(f, a: float, b: float, steps: int = 80) -> float:
+    """The t in [a, b] where f is smallest, by golden-section search (f unimodal there: near a sampled minimum)."""
+    g = (np.sqrt(5) - 1) / 2
+    for _ in range(steps):
+        c, d = b - g * (b - a), a + g * (b - a)
+        if f(c) <= f(d):
+            b = d
+        else:
+            a = c
+    return (a + b) / 2
+
+
+def _track_at(keys: list, attr: str, t: float, smooth: bool) -> np.ndarray:
+    """The keyframes' `attr` (location or look_at, metres) interpolated at time t (seconds), as poses are."""
+    pairs = [(k.t, getattr(k, attr)) for k in keys if getattr(k, attr) is not None]
+    return interpolate(np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]), t, smooth)
+
+
 def look_at_problems(cfg) -> list[tuple[tuple, str]]:
-    """(field location, message) for each trajectory whose look_at meets its own location at some time."""
+    """(field location, message) for each trajectory whose look_at meets its own location at some time:
+    sampled, then the closest approach refined, so a pass through the point between samples is found too."""
     out = []
     for loc, traj in [(("camera",), cfg.camera), (("target", "trajectory"), cfg.target.trajectory)] + [
             (("objects", i, "trajectory"), o.trajectory) for i, o in enumerate(cfg.objects)]:
-        keys = traj.keyframes
-        looks = [(k.t, k.look_at) for k in keys if k.look_at is not None]
-        if not looks:
+        keys, smooth = traj.keyframes, traj.interpolation == "smooth"
+        if all(k.look_at is None for k in keys):
             continue
-        places = [(k.t, k.location) for k in keys if k.location is not None]
-        smooth = traj.interpolation == "smooth"
-        for t in _times([k.t for k in keys], cfg.duration_s):
-            eye = interpolate(np.array([p[0] for p in places]), np.array([p[1] for p in places]), t, smooth)
-            at = interpolate(np.array([p[0] for p in looks]), np.array([p[1] for p in looks]), t, smooth)
-            if np.linalg.norm(at - eye) < _MIN_LOOK_M:
-                where = next((i for i, k in enumerate(keys) if k.t == t and k.look_at is not None), None)
-                field = loc + (("keyframes", where, "look_at") if where is not None else ())
-                out.append((field, f"look_at is the {'camera' if loc == ('camera',) else 'object'}'s own location "
-                                   f"{list(np.round(eye, 6))} at t = {t:g} s, so it looks nowhere"))
-                break
+
+        def gap(t: float) -> float:  # metres between the location and the look_at point at time t (seconds)
+            return float(np.linalg.norm(_track_at(keys, "look_at", t, smooth) - _track_at(keys, "location", t, smooth)))
+
+        times = _times([k.t for k in keys], cfg.duration_s)
+        i = int(np.argmin([gap(t) for t in times]))
+        t = float(times[i])
+        if gap(t) >= _MIN_LOOK_M:
+            t = _closest(gap, times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)])
+        if gap(t) < _MIN_LOOK_M:
+            at_key = next((j for j, k in enumerate(keys) if abs(k.t - t) < 1e-9 and k.look_at is not None), None)
+            field = loc + (("keyframes", at_key, "look_at") if at_key is not None else ())
+            eye = [round(float(v), 6) for v in _track_at(keys, "location", t, smooth)]
+            out.append((field, f"look_at is the {'camera' if loc == ('camera',) else 'object'}'s own location "
+                               f"{eye} at t = {round(t, 6):g} s, so it looks nowhere"))
     return out
 
 

@@ -40,8 +40,7 @@ def file_kind_problem(path: str | os.PathLike) -> str | None:
         return f"cannot be examined ({exc.strerror or exc})"
     if stat.S_ISREG(mode):
         return None
-    kind = next((word for test, word in _KINDS if test(mode)), "not a regular file")
-    return f"is {kind}, not a regular file"
+    return "is " + next((word for test, word in _KINDS if test(mode)), "not a regular file")
 
 
 def box_problem(xywh: np.ndarray, width: int, height: int, row_name=lambda i: f"row {i}") -> str | None:
