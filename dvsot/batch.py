@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from dvsot.config import SceneConfig, asset_paths, load_scene, read_yaml
+from dvsot.config import SceneConfig, asset_paths, load_scene, read_scene_text, read_yaml
 from dvsot.errors import UserError
 from dvsot.outputs import output_dir, output_file
 from dvsot.preview import check_preview_size
@@ -25,8 +25,8 @@ def load_plain_scene(path: str | Path, overrides: dict | None = None) -> SceneCo
         return load_scene(path, overrides)
     except UserError:
         try:
-            data, _ = read_yaml(Path(path).read_text(), str(path))
-        except (UserError, OSError, UnicodeDecodeError):
+            data, _ = read_yaml(read_scene_text(path), str(path))
+        except UserError:
             data = None
         if is_template(data):
             raise UserError(f"{path}: a scene template (it holds distributions, counted items or random walks): "
@@ -76,7 +76,7 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
         if preview:
             check_preview_size(str(p), cfg)
         inputs += [Path(p), *asset_paths(cfg)]
-        tasks.append(SceneTask(name=cfg.name, text=Path(p).read_text(), source=str(p),
+        tasks.append(SceneTask(name=cfg.name, text=read_scene_text(p), source=str(p),
                                base_dir=str(Path(p).parent.resolve()), output=str(out / f"{cfg.name}.h5"),
                                overrides=dict(overrides or {}), preview=preview, record={"seed": cfg.seed}))
     return tasks, inputs

@@ -460,20 +460,25 @@ def _read_image(path: Path) -> None:
         raise UserError(f"{path}: cannot read image (not an image file OpenCV or OpenEXR can decode)")
 
 
-def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> SceneConfig:
-    """Read and validate a scene file; every problem raises UserError naming file, field and line."""
+def read_scene_text(path: str | Path, what: str = "scene") -> str:
+    """The text of a scene (or template) file: a regular file of at most MAX_SCENE_BYTES; UserError otherwise."""
     p = Path(path)
     kind = validate.file_kind_problem(p)  # checked first: reading a FIFO would wait forever
     if kind:
-        raise UserError(f"{p}: " + ("no such scene file" if kind == "no such file" else f"{kind}, not a scene file"))
+        raise UserError(f"{p}: " + (f"no such {what} file" if kind == "no such file" else f"{kind}, not a {what} file"))
     try:
         size = p.stat().st_size
         if size > validate.MAX_SCENE_BYTES:
             raise UserError(f"{p}: {size} bytes, more than the bound of {validate.MAX_SCENE_BYTES} bytes (1 MB) "
-                            f"for a scene file")
-        text = p.read_text()
+                            f"for a {what} file")
+        return p.read_text()
     except FileNotFoundError:
-        raise UserError(f"{p}: no such scene file") from None
+        raise UserError(f"{p}: no such {what} file") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{p}: cannot read scene file ({exc})") from None
-    return parse_scene(text, str(p), p.parent, overrides)
+        raise UserError(f"{p}: cannot read {what} file ({exc})") from None
+
+
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> SceneConfig:
+    """Read and validate a scene file; every problem raises UserError naming file, field and line."""
+    p = Path(path)
+    return parse_scene(read_scene_text(p), str(p), p.parent, overrides)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from dvsot.config import Locate, SceneConfig, read_yaml, validate_scene
+from dvsot.config import Locate, SceneConfig, read_scene_text, read_yaml, validate_scene
 from dvsot.errors import UserError
 from dvsot.events import EventParams
 from dvsot.walk import expand_walks
@@ -310,13 +310,7 @@ def _origin(origin: dict, spath: tuple) -> tuple:
 def read_template(path: str | Path) -> Template:
     """Read a template (or scene) file and check its distributions; UserError naming file, line and field."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise UserError(f"{p}: no such template file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{p}: cannot read template file ({exc})") from None
-    data, locate = read_yaml(text, str(p))
+    data, locate = read_yaml(read_scene_text(p, "template"), str(p))
     if not isinstance(data, dict):
         raise UserError(f"{p}: a template file must be a mapping of fields, got {type(data).__name__}")
     tpl = Template(data, str(p), locate, p.parent.resolve())

@@ -55,7 +55,7 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
     """Worker: load, render, simulate and write one scene (own process when parallel)."""
     from pathlib import Path
 
-    from dvsot.config import load_scene
+    from dvsot.config import load_scene, read_scene_text
     from dvsot.generate import generate
 
     from dvsot.generate import run_manifest
@@ -68,7 +68,7 @@ def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool,
         raise UserError(f"{scene_path}: --resolution cannot rescale a lens given as fx/cx/cy")
     # the dataset file, its preview and kept frames are one run: renamed into place together, or none of them
     with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
-        summary = generate(cfg, out_path, Path(scene_path).read_text(), progress=not quiet, keep_frames=keep_frames)
+        summary = generate(cfg, out_path, read_scene_text(scene_path), progress=not quiet, keep_frames=keep_frames)
         if preview:
             from dvsot.preview import PREVIEW_SEGMENTS, write_preview
 
