@@ -22,43 +22,55 @@ _QUADS = np.frombuffer(b"".join(b"%04d" % i for i in range(10_000)), dtype=np.ui
 _POW10 = 10 ** np.arange(1, 19, dtype=np.int64)  # 10 .. 10^18: digit counts by search
 
 
-def _digits(v: np.ndarray) -> np.ndarray:
-    """Decimal digits of each non-negative int64 (1 for 0)."""
-    return 1 + np.searchsorted(_POW10, v, side="right")
+def _digits(v: np.ndarray, top: int | None = None) -> np.ndarray:
+    """Decimal digits (int8) of each non-negative int64 (1 for 0); top: the largest value, if known."""
+    top = int(v.max()) if top is None else top
+    out = np.ones(len(v), np.int8)
+    for power in _POW10[: len(str(top)) - 1]:  # one comparison per digit the largest value has
+        out += v >= power
+    return out
 
 
-def format_rows(fields: list[tuple[np.ndarray, int]], seps: list[bytes], end: bytes = b"\n") -> bytes:
+def format_rows(fields: list[tuple[np.ndarray, int]], seps: list[bytes], end: bytes = b"\n",
+                tops: list[int] | None = None, scratch: dict | None = None) -> bytes:
     """Rows of non-negative integers as text: field k, then seps[k], ...; a width of 0 is variable, w > 0 zero-padded.
 
     Each row is first laid out in fixed slots (every number right-aligned in a slot of whole 4-digit
     groups, each separator in a 4-byte slot of its own), then the unused leading bytes are dropped.
+    tops (each field's largest value over all chunks) and a scratch dict let chunk after chunk reuse
+    one layout and its buffers (a fresh buffer costs a page fault per 4 kB, as much as the formatting).
     """
     n = len(fields[0][0])
     values = [np.asarray(v, np.int64) for v, _ in fields]
     slots = []  # (quads, kept bytes per row) per slot, in row order
     for k, (v, (_, w)) in enumerate(zip(values, fields)):
-        top = int(v.max()) if n else 0
-        quads = max(-(-max(int(_digits(np.array([top]))[0]), w) // 4), 1)
-        slots.append((v, quads, _digits(v) if w == 0 else np.full(n, w, np.int64)))
+        top = (int(v.max()) if n else 0) if tops is None else tops[k]
+        quads = max(-(-max(len(str(top)), w) // 4), 1)
+        slots.append((v, quads, _digits(v, top) if w == 0 else np.full(n, w, np.int8)))
         slots.append((seps[k] if k < len(seps) else end, 1, None))
     row_quads = sum(q for _, q, _ in slots)
-    rec = np.zeros((n, row_quads), np.uint32)
-    keep = np.zeros((n, 4 * row_quads), bool)
+    # built column by column in column-major buffers (each write contiguous), transposed once at the end
+    scratch = {} if scratch is None else scratch
+    if scratch.get("shape", (0, 0))[1] < n or scratch["shape"][0] != row_quads:
+        scratch.update(shape=(row_quads, n), rec=np.empty((row_quads, n), np.uint32),
+                       keep=np.empty((4 * row_quads, n), bool))
+    rec, keep = scratch["rec"][:, :n], scratch["keep"][:, :n]
     col = 0
     for v, quads, width in slots:
         if width is None:  # a separator: its bytes at the end of its slot
-            sep = v.rjust(4, b"\0")
-            rec[:, col] = np.frombuffer(sep, np.uint32)[0]
-            keep[:, 4 * col + 4 - len(v):4 * col + 4] = True
+            rec[col] = np.frombuffer(v.rjust(4, b"\0"), np.uint32)[0]
+            keep[4 * col:4 * col + 4] = (np.arange(4) >= 4 - len(v))[:, None]
         else:
-            rest = v.copy()
+            rest = v
             for q in range(quads - 1, -1, -1):  # least significant group in the slot's last quad
                 rest, group = np.divmod(rest, 10_000)
-                rec[:, col + q] = _QUADS[group]
+                rec[col + q] = _QUADS[group]
             nbytes = 4 * quads
-            keep[:, 4 * col:4 * col + nbytes] = np.arange(nbytes)[None, :] >= (nbytes - width)[:, None]
+            for j in range(nbytes):  # byte j of the slot holds a digit when the number has more than nbytes - j
+                np.greater(width, nbytes - 1 - j, out=keep[4 * col + j])
         col += quads
-    return rec.view(np.uint8).reshape(n, -1)[keep].tobytes()
+    rows = np.ascontiguousarray(rec.T).view(np.uint8)  # (n, 4 * row_quads) bytes, row after row
+    return rows[np.ascontiguousarray(keep.T)].tobytes()
 
 
 def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
@@ -69,13 +81,19 @@ def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndar
         raise ValueError("text export needs timestamps >= 0")
     with open(path, "wb") as fh:
         fh.write(b"t,x,y,p\n" if kind == "csv" else f"{width} {height}\n".encode())
+        if not len(t):
+            return
+        scratch: dict = {}
+        xyp_tops = [int(np.max(x)), int(np.max(y)), int(np.max(p))]
         for i in range(0, len(t), _ROWS_PER_CHUNK):
             s = slice(i, i + _ROWS_PER_CHUNK)
             xyp = [(x[s], 0), (y[s], 0), (p[s], 0)]
             if kind == "csv":
-                fh.write(format_rows([(t[s], 0)] + xyp, [b",", b",", b","]))
+                fh.write(format_rows([(t[s], 0)] + xyp, [b",", b",", b","], tops=[int(t[-1])] + xyp_tops,
+                                     scratch=scratch))
             else:
-                fh.write(format_rows([(t[s] // 1_000_000, 0), (t[s] % 1_000_000, 6)] + xyp, [b".", b" ", b" ", b" "]))
+                fh.write(format_rows([(t[s] // 1_000_000, 0), (t[s] % 1_000_000, 6)] + xyp, [b".", b" ", b" ", b" "],
+                                     tops=[int(t[-1]) // 1_000_000, 999_999] + xyp_tops, scratch=scratch))
 
 
 def _data_lines(path: Path, skip: int) -> list[int]:
