@@ -63,6 +63,10 @@ def test_import_rebases_keeps_annotations_and_absent(recording, tmp_path):
         gt = ds.segment_boxes()
         np.testing.assert_array_equal(gt[[2, 4, 9, 12]], BOXES[[1, 2, 4, 5]])  # as annotated, not interpolated
         assert np.isnan(gt[7]).all() and np.isnan(gt[np.flatnonzero(want < 0)]).all()
+    from dvsot.commands.info import summarise
+
+    info = summarise(str(out))
+    assert (info["t_offset_us"], info["ground_truth"], info["segments_matched_to_annotation"]) == (START, "annotations", 5)
 
 
 class Keeper(Tracker):

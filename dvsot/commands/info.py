@@ -44,7 +44,11 @@ def summarise(path: str) -> dict:
             "segments_with_box": int(have.sum()),
             "box_coverage": float(have.mean()) if ds.num_segments else 0.0,
             "box_samples": int(len(ds.boxes().t)),
+            "t_offset_us": ds.t_offset_us,
+            "ground_truth": "annotations" if ds.annotated else "rendered",
         }
+        if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
+            out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
         if have.any():
             w, h = seg[have, 2], seg[have, 3]
             out["box_width_px"] = [float(w.min()), float(np.median(w)), float(w.max())]
@@ -66,6 +70,11 @@ def _text(info: dict) -> str:
              + (f", {info['noise_events']:,} noise" if info.get("noise_events") else "") + ")",
              f"  segments       {info['segments']} x {info['segment_ms']:g} ms, "
              f"{info['segments_with_box']} with a box ({100 * info['box_coverage']:.1f}%)"]
+    if info.get("t_offset_us"):
+        lines.append(f"  t_offset       {info['t_offset_us']} us (added to t for the recording's clock)")
+    if info.get("ground_truth") == "annotations":
+        lines.append(f"  annotations    {info['box_samples']} boxes, {info['segments_matched_to_annotation']} "
+                     f"segments matched to one (only those are scored)")
     if "box_width_px" in info:
         w, h = info["box_width_px"], info["box_height_px"]
         lines.append(f"  box size       w {w[0]:.0f}/{w[1]:.0f}/{w[2]:.0f}  h {h[0]:.0f}/{h[1]:.0f}/{h[2]:.0f} px (min/median/max)")
