@@ -64,9 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except UserError as exc:
+        _close_progress_bars()  # a bar left open would redraw itself under the message at exit
         print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except RunError as exc:
+        _close_progress_bars()
         print(f"dvsot {args.command}: failed: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, Validat
 from dvsot import validate, yamlio
 from dvsot.errors import UserError
 from dvsot.events import EventParams
-from dvsot.scene_checks import look_at_problems
+from dvsot.scene_checks import scene_problems
 
 # Numbers must be numbers: no "1.6" strings or true/false where a number goes (an int is a fine float)
 Float = Annotated[float, StrictType()]
@@ -374,7 +374,7 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
         line = locate(tuple(field.split(".")))
         msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{field}': {msg}") from None
-    for loc, msg in look_at_problems(cfg):
+    for loc, msg in scene_problems(cfg):
         line = locate(loc)
         raise UserError(f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}': {msg}")
     _check_assets(cfg, source, base_dir or Path("."), locate)

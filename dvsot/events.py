@@ -43,6 +43,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from dvsot.errors import UserError
 
+MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
+
 
 # The kernel's first pass compares |L1 - ref| with a float32 gate this much below the pixel's smaller
 # threshold: far more than the rounding of ref or of the float32, so no pixel that fires is skipped.
@@ -252,7 +254,13 @@ class EventSimulator:
         for rate, on_only in ((p.shot_noise_hz, False), (p.leak_hz, True)):
             if rate <= 0:
                 continue
-            k = int(rng.poisson(rate * npix * seconds))
+            mean = rate * npix * seconds
+            if mean > MAX_NOISE_EVENTS:  # before numpy is asked for the arrays
+                field = "leak_hz" if on_only else "shot_noise_hz"
+                raise UserError(f"{field} {rate:g} over {self.width}x{self.height} px gives {mean:.3g} noise events "
+                                f"between frames {(t1 - t0) / 1000:g} ms apart, more than the bound of "
+                                f"{MAX_NOISE_EVENTS:g}")
+            k = int(rng.poisson(mean))
             pix = rng.integers(0, npix, k)
             times = t0 + (t1 - t0) * (1.0 - rng.random(k))  # in (t0, t1]
             pol = np.ones(k, bool) if on_only else rng.random(k) < 0.5

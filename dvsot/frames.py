@@ -28,6 +28,7 @@ import numpy as np
 
 from dvsot.background import read_ahead
 from dvsot.errors import UserError
+from dvsot.validate import file_kind_problem
 from dvsot.events import log_intensity
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
@@ -172,7 +173,12 @@ def _log_table(dtype: str, log_eps: float) -> np.ndarray:
 
 
 def _image_files(directory: Path) -> list[Path]:
-    return sorted(p for p in directory.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    files = sorted(p for p in directory.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    for p in files:
+        kind = file_kind_problem(p)  # a FIFO named like an image would block the decoder
+        if kind:
+            raise UserError(f"{p}: {kind}, not an image file")
+    return files
 
 
 def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
@@ -180,6 +186,9 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
     p = Path(path)
     if not p.exists():
         raise UserError(f"{p}: no such file or directory")
+    kind = None if p.is_dir() else file_kind_problem(p)  # before opening: a FIFO would block the readers
+    if kind:
+        raise UserError(f"{p}: {kind}, not an image directory, video or .npy file")
     if p.is_dir():
         files = _image_files(p)
         if not files:
@@ -219,6 +228,9 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
 def text_lines(path: str | os.PathLike, what: str) -> list[tuple[int, str]]:
     """(1-based line number, text) of a text file's lines that hold something once `#` comments are cut off."""
     p = Path(path)
+    kind = file_kind_problem(p)  # before reading: a FIFO would block
+    if kind:
+        raise UserError(f"{p}: cannot read {what} ({'no such file' if kind == 'no such file' else kind})")
     try:
         lines = p.read_text().splitlines()
     except (OSError, UnicodeDecodeError) as exc:

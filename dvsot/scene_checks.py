@@ -64,6 +64,15 @@ def look_at_problems(cfg) -> list[tuple[tuple, str]]:
     return out
 
 
+def scene_problems(cfg) -> list[tuple[tuple, str]]:
+    """(field location, message) of everything refused in a scene that each field alone allows."""
+    out = []
+    if cfg.segment_ms > cfg.duration_s * 1000:
+        out.append((("segment_ms",), f"{cfg.segment_ms:g} ms is longer than duration_s ({cfg.duration_s:g} s): "
+                                     "the sequence would have no segment"))
+    return out + look_at_problems(cfg)
+
+
 def visibility_warnings(cfg) -> list[str]:
     """Warnings for a target that is never in view, or fills the frame, at every checked time (projected points)."""
     k = cfg.sensor.intrinsics()

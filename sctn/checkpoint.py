@@ -10,6 +10,7 @@ import torch
 
 from dvsot.errors import UserError
 from dvsot.outputs import replacing, run_outputs
+from dvsot.validate import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -58,8 +59,11 @@ def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
 def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
     """The model and metadata of a checkpoint (the shipped default if path is None); UserError if unusable."""
     p = Path(path) if path is not None else default_checkpoint_path()
-    if not p.is_file():
+    kind = file_kind_problem(p)  # before torch.load: a FIFO would block it, a directory is no checkpoint
+    if kind == "no such file":
         raise UserError(f"{p}: no such checkpoint" + (" (train one with `dvsot train`)" if path is None else ""))
+    if kind:
+        raise UserError(f"{p}: {kind}, not a checkpoint file")
     try:
         blob = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several kinds for damaged files

@@ -45,6 +45,7 @@ def test_scene_files_that_would_blow_up_are_refused_naming_the_bound(tmp_path, c
     (["--fps", "1e-9"], None, ("--fps 1e-09", "bound of 3600 s")),
     ([], "0\n0.001\n0.002\n0.003\n1000000\n", ("t.txt", "bound of 3600 s")),
     (["--fps", "1000", "--segment-us", "1"], None, ("--segment-us", "at least 1000")),
+    (["--fps", "10", "--shot-noise-hz", "1e9"], None, ("shot_noise_hz 1e+09", "bound of 5e+07")),
 ])
 def test_simulate_flags_that_would_blow_up_are_refused_naming_the_bound(tmp_path, capsys, flags, times, words):
     np.save(tmp_path / "s.npy", np.random.default_rng(0).random((5, 12, 16), dtype=np.float32))

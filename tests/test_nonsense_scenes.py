@@ -27,6 +27,7 @@ TARGET = "keyframes: [{t: 0, location: [0, 0, 0]}]"
     ("shape: cube", "shape: cube\n  size_m: 1.0e+30", "target.size_m", "less than or equal to 10000"),
     (TARGET, "keyframes: [{t: 0, location: [1.0e+30, 0, 0]}]", "target.trajectory.keyframes.0.location.0",
      "less than or equal to 1000000"),
+    ("duration_s: 0.1", "duration_s: 0.1\nsegment_ms: 200", "segment_ms", "no segment"),
 ])
 def test_nonsense_is_refused_naming_field_and_line(tmp_path, capsys, old, new, field, words):
     scene = tmp_path / "s.yaml"

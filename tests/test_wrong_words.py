@@ -80,3 +80,32 @@ def test_an_interrupted_bar_is_not_redrawn_under_the_message(tmp_path):
     last = err.rstrip("\n").split("\n")[-1]  # the message is the last line: no bar drawn after it
     assert "frame/s" in err and last.startswith("dvsot simulate: interrupted") and "\r" not in last, err[-300:]
     assert not (tmp_path / "o.h5").exists()
+
+
+def test_a_checkpoint_or_timestamps_that_are_not_regular_files_are_named(tmp_path, capsys):
+    (tmp_path / "ck.pt").mkdir()
+    with DatasetWriter(tmp_path / "d.h5", 16, 16, attrs={"split": "test"}) as w:
+        w.append_boxes([0, 40_000], [[2, 2, 5, 5], [2, 2, 5, 5]])
+        w.close(40_000)
+    err = error_line(["bench", "--tracker", "sctn", "--checkpoint", str(tmp_path / "ck.pt"), "--data",
+                      str(tmp_path / "d.h5"), "--out", str(tmp_path / "b")], capsys)
+    assert "ck.pt: is a directory, not a checkpoint file" in err, err
+    np.save(tmp_path / "s.npy", np.zeros((3, 4, 4), np.float32))
+    os.mkfifo(tmp_path / "t.txt")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    r = subprocess.run([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "s.npy"), "--timestamps",
+                        str(tmp_path / "t.txt"), "-o", str(tmp_path / "o.h5")], capture_output=True, text=True,
+                       timeout=60, env=env)
+    assert r.returncode == 2 and "is a FIFO (named pipe)" in r.stderr, r.stderr
+
+
+def test_an_error_mid_run_is_the_last_line_not_the_bar(tmp_path):
+    stack = np.random.default_rng(0).random((3000, 64, 96), dtype=np.float32)
+    stack[2500, 3, 3] = np.nan  # a bad frame far into the run
+    np.save(tmp_path / "s.npy", stack)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    r = subprocess.run([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "s.npy"), "--fps", "1000",
+                        "-o", str(tmp_path / "o.h5")], capture_output=True, text=True, timeout=300, env=env)
+    last = r.stderr.rstrip("\n").split("\n")[-1]
+    assert r.returncode == 2 and "frame/s" in r.stderr and last.startswith("dvsot simulate: error:"), r.stderr[-300:]
+    assert "frame 2500" in last and "\r" not in last
