@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 from dvsot import __version__, interrupts
 from dvsot.errors import RunError, UserError
@@ -56,11 +57,21 @@ def _close_progress_bars() -> None:
         bar.close()
 
 
+def _one_line_warnings(prog: str) -> None:
+    """Show each warning as one stderr line "prog: note: message" (Python's default adds the source line)."""
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"{prog}: note: {' '.join(str(message).split())}", file=file or sys.stderr)
+
+    warnings.showwarning = show
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
     parser = build_parser()
     args = parser.parse_args(argv)
     saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
+    _one_line_warnings(f"dvsot {args.command}")
     try:
         return int(args._run(args) or 0)
     except UserError as exc:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 
 import torch
@@ -14,6 +15,22 @@ from dvsot.validate import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
+
+
+class LegacyLayoutWarning(UserWarning):
+    """A checkpoint whose network is not the paper preset (biases, tail steps or other steps)."""
+
+
+def layout_note(cfg: NetworkConfig) -> str | None:
+    """What makes a network config differ from the paper preset's layout, or None if it is the preset's."""
+    ways = []
+    if cfg.bias:
+        ways.append("layers with biases (an empty input can fire)")
+    if cfg.tail_steps:
+        ways.append(f"{cfg.tail_steps} empty tail steps")
+    if cfg.steps != 10 or cfg.step_us != 1000:
+        ways.append(f"{cfg.steps} steps of {cfg.step_us} us")
+    return ("not the paper preset: " + ", ".join(ways)) if ways else None
 
 
 def default_checkpoint_path() -> Path:
@@ -70,7 +87,14 @@ def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
         raise UserError(f"{p}: not a readable SCTN checkpoint ({type(exc).__name__})") from None
     if not isinstance(blob, dict) or blob.get("format") != "sctn-checkpoint":
         raise UserError(f"{p}: not an SCTN checkpoint")
-    model = SCTN(NetworkConfig(**blob["config"]))
+    config = dict(blob["config"])
+    if "bias" not in config:  # written before the layers' bias became a setting: biased if it has bias tensors
+        config["bias"] = any(k.endswith(".bias") for k in blob["state_dict"])
+    cfg = NetworkConfig(**config)
+    note = layout_note(cfg)
+    if note:
+        warnings.warn(f"{p}: {note}", LegacyLayoutWarning, stacklevel=2)
+    model = SCTN(cfg)
     model.load_state_dict(blob["state_dict"])
     model.eval()
     return model, blob.get("meta", {})

@@ -3,8 +3,13 @@
 Input: the events of one 10 ms segment as T = 10 one-millisecond steps x 2 polarity channels on a
 107 x 107 canvas (see sctn/encoding.py). Output: the voltages of the two output neurons
 (0 = background, 1 = target) at every step. Each convolution runs once over all T steps as one
-(T * B) batch (it is linear); only the neurons' recurrence loops over time. `tail_steps` extra steps
-without input let late events reach their kernel's peak.
+(T * B) batch (it is linear); only the neurons' recurrence loops over time.
+
+The defaults are the paper's preset: T = 10 steps of 1 ms and no more, and layers without biases, so
+a neuron that no event reaches stays silent (the paper: "only the neurons corresponding to the events
+within the bounding box will emit spikes"). `tail_steps` (extra empty steps that let late events reach
+their kernel's peak) and `bias` are named deviations for ablations and for checkpoints of the older
+layout (biases and two tail steps), which load as such.
 
 Default widths (chosen for speed on a CPU): conv 2->8 (4x4, stride 4) -> 16 (3x3, stride 2) ->
 16 (3x3, stride 1); fully connected 1600 -> 64 -> 32 -> 2.
@@ -29,7 +34,8 @@ class NetworkConfig(BaseModel):
     input_size: int = 107
     steps: int = 10
     step_us: int = 1000
-    tail_steps: int = 2
+    tail_steps: int = 0
+    bias: bool = False
     channels: tuple[int, int, int] = (8, 16, 16)
     kernels: tuple[int, int, int] = (4, 3, 3)
     strides: tuple[int, int, int] = (4, 2, 1)
@@ -54,11 +60,11 @@ class SCTN(nn.Module):
         super().__init__()
         self.cfg = cfg = cfg or NetworkConfig()
         chans = (2,) + tuple(cfg.channels)
-        self.convs = nn.ModuleList(nn.Conv2d(chans[i], chans[i + 1], cfg.kernels[i], cfg.strides[i])
+        self.convs = nn.ModuleList(nn.Conv2d(chans[i], chans[i + 1], cfg.kernels[i], cfg.strides[i], bias=cfg.bias)
                                    for i in range(3))
         flat = cfg.channels[-1] * cfg.conv_sizes()[-1] ** 2
         widths = (flat,) + tuple(cfg.fc) + (2,)
-        self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1]) for i in range(3))
+        self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1], bias=cfg.bias) for i in range(3))
         sizes = list(cfg.channels) + list(cfg.fc) + [2]
         self.neurons = nn.ModuleList(CLIF(n, cfg.alpha_m, cfg.alpha_s, surrogate_width=cfg.surrogate_width)
                                      for n in sizes)
@@ -67,7 +73,8 @@ class SCTN(nn.Module):
     def _init_weights(self) -> None:
         for layer in list(self.convs) + list(self.fcs):
             nn.init.kaiming_uniform_(layer.weight, a=0.0)
-            nn.init.zeros_(layer.bias)
+            if layer.bias is not None:
+                nn.init.zeros_(layer.bias)
 
     @torch.no_grad()
     def calibrate(self, x: torch.Tensor, quantile: float = 0.9, target: float = 1.0) -> list[float]:
@@ -84,7 +91,8 @@ class SCTN(nn.Module):
             if q > 1e-6:
                 f = target * self.neurons[k].theta / q
                 layer.weight.mul_(f)
-                layer.bias.mul_(f)
+                if layer.bias is not None:
+                    layer.bias.mul_(f)
                 factors.append(f)
             else:
                 factors.append(1.0)
@@ -235,7 +243,7 @@ class SCTN(nn.Module):
         n, k = weights.shape
         if crop == "nearest":
             # the fully connected layers see U distinct inputs: run them on those, expand at the end
-            current, expand = products + fc1.bias, inverse
+            current, expand = _plus_bias(products, fc1), inverse
             rec["mix_macs"] = 0.0
         else:
             slot = torch.zeros(n * k, dtype=torch.long)
@@ -245,7 +253,7 @@ class SCTN(nn.Module):
                 mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
             else:  # fused: no (T, N, corners, width) intermediate
                 mixed = torch.from_numpy(mix_corners(products.numpy(), slot.view(n, k).numpy(), weights.numpy()))
-            current, expand = mixed + fc1.bias, None
+            current, expand = _plus_bias(mixed, fc1), None
             mixing = (weights > 0).sum(dim=1)  # a candidate on a cell (one corner) needs no mixing
             rec["mix_macs"] = float(mixing[mixing > 1].sum()) * fc1.out_features * ta
         h, v = self.neurons[3](current)
@@ -285,6 +293,11 @@ def check_crop(crop: str) -> None:
     """Raise ValueError unless crop names a fast-mode crop (CROPS)."""
     if crop not in CROPS:
         raise ValueError(f"crop must be one of {', '.join(CROPS)}, got {crop!r}")
+
+
+def _plus_bias(sums: torch.Tensor, layer: nn.Linear) -> torch.Tensor:
+    """A linear layer's weighted sums plus its bias, if it has one (the paper preset has none)."""
+    return sums if layer.bias is None else sums + layer.bias
 
 
 def _interval(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

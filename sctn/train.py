@@ -44,6 +44,9 @@ class TrainConfig:
     val_segments: int = 40
     max_minutes: float | None = None
     ops_penalty: float = 0.0  # loss weight per million synaptic operations (ACs) per sample; 0 = off
+    squared_error: bool = False  # deviation: square each sample's eq.-5 error (sctn/loss.py)
+    background_term: bool = False  # deviation: add the mirrored background-neuron error (sctn/loss.py)
+    calibrate: bool = True  # data-driven weight scale at initialisation (SCTN.calibrate); see docs/sctn.md
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def __post_init__(self) -> None:
@@ -106,11 +109,16 @@ def segment_batch(items: list[tuple[EventBatch, int, np.ndarray]], image_wh: lis
     return torch.cat(xs), torch.from_numpy(np.concatenate(ious)), torch.from_numpy(np.concatenate(pos))
 
 
-def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, kind: str) -> dict:
+def batch_loss(vmax: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> torch.Tensor:
+    """The voltage loss of cfg (eq. 5-6 of the target neuron by default) on maximum voltages (N, 2)."""
+    return voltage_loss(vmax, iou, pos, cfg.loss, squared=cfg.squared_error, background=cfg.background_term)
+
+
+def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> dict:
     """Loss, firing accuracy of the target neuron and mean V_max of positives / negatives on one batch."""
     with torch.no_grad():
         vmax = model(x).max(dim=1).values
-        loss = float(voltage_loss(vmax, iou, pos, kind))
+        loss = float(batch_loss(vmax, iou, pos, cfg))
     fires = vmax[:, 1] >= THETA
     return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
             "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
@@ -122,10 +130,10 @@ def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Te
     """The voltage loss of one batch, plus cfg.ops_penalty x the mean synaptic operations per sample in
     millions (the ACs the spikes of conv1..fc2 drive; input events are given, not learned), and those ACs."""
     if cfg.ops_penalty <= 0:
-        return voltage_loss(model(x).max(dim=1).values, iou, pos, cfg.loss), None
+        return batch_loss(model(x).max(dim=1).values, iou, pos, cfg), None
     volts, spikes = model.forward_record(x)
     ops = torch.stack(layer_ops(model, spikes)[1:]).sum(dim=0).mean()
-    loss = voltage_loss(volts.max(dim=1).values, iou, pos, cfg.loss) + cfg.ops_penalty * ops / 1e6
+    loss = batch_loss(volts.max(dim=1).values, iou, pos, cfg) + cfg.ops_penalty * ops / 1e6
     return loss, float(ops.detach())
 
 
@@ -152,7 +160,8 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print)
 
         model = SCTN(cfg.network)
         calib_items = [train_items[k] for k in rng.choice(len(train_items), min(8, len(train_items)), replace=False)]
-        history_calibration = model.calibrate(segment_batch(*load(calib_items), rng, cfg.network)[0])
+        calib_batch = segment_batch(*load(calib_items), rng, cfg.network)[0]  # drawn either way: same rng stream
+        history_calibration = model.calibrate(calib_batch) if cfg.calibrate else None
         opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
 
         val_pick = [val_items[i] for i in np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)] if val_items else []
@@ -183,7 +192,7 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print)
                 bar.set_postfix(epoch=epoch, loss=f"{history['train_loss'][-1]:.4f}", refresh=False)
                 if val_batch is not None and step % cfg.val_every == 0:
                     model.eval()
-                    m = evaluate(model, *val_batch, cfg.loss)
+                    m = evaluate(model, *val_batch, cfg)
                     m["step"] = step
                     history["val"].append(m)
                     bar.write(f"step {step}: val loss {m['loss']:.4f} acc {m['accuracy']:.3f} "
@@ -196,7 +205,7 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print)
         bar.close()
         model.eval()
         if val_batch is not None:
-            final = evaluate(model, *val_batch, cfg.loss)
+            final = evaluate(model, *val_batch, cfg)
             final["step"] = step
             history["val"].append(final)
         history.update(steps=step, minutes=(time.monotonic() - start) / 60, train_segments=len(train_items),

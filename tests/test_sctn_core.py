@@ -136,8 +136,21 @@ def test_loss_values_by_hand():
     # target V_max: pos 0.5 (short by e^4/100), pos 3.0 (ok), neg 0.1 (ok), neg 0.6 (0.4 too high);
     # background V_max: pos 0.1 (ok), pos 0.5 (0.3 too high), neg 0.9 (ok), neg 0.6 (short by 0.2)
     vmax = torch.tensor([[0.1, 0.5], [0.5, 3.0], [0.9, 0.1], [0.6, 0.6]])
-    expected = ((math.exp(4) / 100) ** 2 + 0.3 ** 2 + 0.4 ** 2 + 0.2 ** 2) / 4
-    assert float(voltage_loss(vmax, iou, pos, "exp")) == pytest.approx(expected, rel=1e-5)
+    # the paper's eq. 5: the target neuron's errors, as they are, averaged over the samples
+    paper = (math.exp(4) / 100 + 0.4) / 4
+    assert float(voltage_loss(vmax, iou, pos, "exp")) == pytest.approx(paper, rel=1e-5)
+    # the named deviations: squared errors, and the mirrored background neuron
+    squared = ((math.exp(4) / 100) ** 2 + 0.4 ** 2) / 4
+    assert float(voltage_loss(vmax, iou, pos, "exp", squared=True)) == pytest.approx(squared, rel=1e-5)
+    both = ((math.exp(4) / 100) ** 2 + 0.3 ** 2 + 0.4 ** 2 + 0.2 ** 2) / 4
+    assert float(voltage_loss(vmax, iou, pos, "exp", squared=True, background=True)) == pytest.approx(both, rel=1e-5)
+    linear_bg = (math.exp(4) / 100 + 0.3 + 0.4 + 0.2) / 4
+    assert float(voltage_loss(vmax, iou, pos, "exp", background=True)) == pytest.approx(linear_bg, rel=1e-5)
+    # its gradient: -1/N on the short positive, +1/N on the wrong negative, 0 where eq. 5 is satisfied
+    v = vmax.clone().requires_grad_()
+    voltage_loss(v, iou, pos, "exp").backward()
+    np.testing.assert_allclose(v.grad[:, 1], [-0.25, 0.0, 0.0, 0.25])
+    assert float(v.grad[:, 0].abs().sum()) == 0.0
 
 
 def test_encoding_places_events_at_the_right_pixel_step_and_channel():
@@ -372,3 +385,54 @@ def test_mix_corners_weights_each_candidates_corner_sums():
     out = mix_corners(sums, slots, weights)
     expect = np.einsum("nk,tnkw->tnw", weights, sums[:, slots])
     np.testing.assert_allclose(out, expect, rtol=1e-6)
+
+
+def test_paper_preset_is_silent_without_events_and_has_ten_steps():
+    torch.manual_seed(0)
+    net = SCTN()
+    assert net.cfg.steps == 10 and net.cfg.tail_steps == 0 and not net.cfg.bias
+    assert all(layer.bias is None for layer in list(net.convs) + list(net.fcs))
+    with torch.no_grad():
+        for layer in list(net.convs) + list(net.fcs):
+            layer.weight.mul_(50.0)  # weights strong enough to fire on any input at all
+        volts, spikes = net.forward_record(torch.zeros(3, 10, 2, 107, 107))
+        assert volts.shape == (3, 10, 2)
+        assert all(float(s.abs().sum()) == 0.0 for s in spikes) and float(volts.abs().max()) == 0.0
+        _, spikes = net.forward_record((torch.rand(3, 10, 2, 107, 107) < 0.02).float())
+        assert float(spikes[1].sum()) > 0  # and they do fire once events arrive
+
+
+def test_legacy_checkpoint_loads_with_a_note_naming_the_file(tmp_path):
+    from sctn.checkpoint import LegacyLayoutWarning, load_checkpoint, save_checkpoint
+
+    old = SCTN(NetworkConfig(bias=True, tail_steps=2))
+    path = save_checkpoint(tmp_path / "old.pt", old, {})
+    blob = torch.load(path, weights_only=True)
+    del blob["config"]["bias"]  # as written before the bias became a setting
+    torch.save(blob, path)
+    with pytest.warns(LegacyLayoutWarning, match=r"old\.pt: not the paper preset: layers with biases.*2 empty tail"):
+        model, _ = load_checkpoint(path)
+    assert model.cfg.bias and model.cfg.tail_steps == 2
+    save_checkpoint(tmp_path / "new.pt", SCTN(), {})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_checkpoint(tmp_path / "new.pt")
+
+
+def test_candidates_are_fixed_per_location_whatever_came_before():
+    from sctn.tracker import SCTNTracker
+
+    tracker = SCTNTracker(SCTN(), seed=4, finetune_iters=0)
+    empty = EventBatch.empty()
+    tracker.init(empty, 0, np.array([100.0, 80.0, 40.0, 30.0]), 320, 240)
+    first = tracker.candidates()
+    tracker.track(empty, 0)
+    tracker.track(empty, 10_000)
+    tracker.box, tracker.trans = np.array([100.2, 79.9, 40.0, 30.1]), tracker.trans0  # back at the same pixel box
+    again = tracker.candidates()  # the same draws around a box 0.2 px away
+    np.testing.assert_allclose(again[:, :2], first[:, :2], atol=0.5)
+    np.testing.assert_allclose(again[:, 2:], first[:, 2:], rtol=0.01)
+    tracker.box = np.array([101.0, 80.0, 40.0, 30.0])  # another location: other draws
+    assert not np.allclose(tracker.candidates()[:, 2:], first[:, 2:], rtol=0.01)
