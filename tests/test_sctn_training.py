@@ -67,7 +67,7 @@ def test_ops_penalty_trains_a_network_that_drives_fewer_synaptic_operations(trai
 
     model, history, train_file, test_file = trained
     cfg = TrainConfig(epochs=3, segments_per_epoch=12, batch_segments=2, val_every=100, val_segments=2, seed=0, lr=3e-3,
-                      ops_penalty=20.0)
+                      ops_penalty=5.0)
     frugal, frugal_history = train([train_file], cfg, progress=False)
     ops = frugal_history["train_ops_per_sample"]
     assert "train_ops_per_sample" not in history and len(ops) == len(frugal_history["train_loss"])

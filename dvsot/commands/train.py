@@ -28,6 +28,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="widths of the two hidden fully connected layers (default: sctn.network.NetworkConfig)")
     p.add_argument("--ops-penalty", type=float, default=0.0, metavar="L",
                    help="add L x synaptic operations per sample, in millions, to the loss (lower energy; default 0)")
+    p.add_argument("--squared-error", action="store_true",
+                   help="deviation from the paper: square each sample's eq.-5 error (an ablation row)")
+    p.add_argument("--background-term", action="store_true",
+                   help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
+    p.add_argument("--no-calibration", action="store_true",
+                   help="initialise without the data-driven weight scaling (an ablation row)")
+    p.add_argument("--tail-steps", type=int, default=0,
+                   help="deviation from the paper: empty steps after the 10 ms window (default 0)")
+    p.add_argument("--bias", action="store_true",
+                   help="deviation from the paper: layers with biases (an empty input can then fire)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
     p.add_argument("--quiet", action="store_true")
 
@@ -37,7 +47,9 @@ def _network_config(args: argparse.Namespace):
     from dvsot.errors import UserError
     from sctn.network import NetworkConfig
 
-    net = {}
+    if args.tail_steps < 0:
+        raise UserError(f"--tail-steps must be >= 0, got {args.tail_steps}")
+    net = {"tail_steps": args.tail_steps, "bias": args.bias}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
         if sizes is not None:
@@ -56,7 +68,8 @@ def _train_config(args: argparse.Namespace):
         return TrainConfig(epochs=args.epochs, segments_per_epoch=args.segments_per_epoch,
                            batch_segments=args.batch_segments, lr=args.lr, loss=args.loss, seed=args.seed,
                            max_minutes=args.max_minutes, ops_penalty=args.ops_penalty,
-                           network=_network_config(args))
+                           squared_error=args.squared_error, background_term=args.background_term,
+                           calibrate=not args.no_calibration, network=_network_config(args))
     except TrainConfigError as exc:  # every field set here is the flag of the same name
         raise UserError(f"--{exc.field.replace('_', '-')} {exc.problem}") from None
 
