@@ -213,6 +213,9 @@ class DatasetWriter:
             raise ValueError("events must be appended in time order")
         if t[0] < 0:
             raise ValueError("event timestamps must be >= 0")
+        if t[-1] >= validate.MAX_DURATION_US:  # before ms_to_idx grows: an epoch time would ask for terabytes
+            raise ValueError(f"an event at {int(t[-1])} us lies beyond the {validate.MAX_DURATION_S} s a file holds; "
+                             f"rebase the timestamps and keep the start in t_offset_us")
         if self._has_signal is None:
             self._has_signal = batch.signal is not None
             if self._has_signal:

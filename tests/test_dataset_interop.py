@@ -12,6 +12,7 @@ import pytest
 
 from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.errors import UserError
+from dvsot.events import EventBatch
 from tests.test_dataset import random_events
 
 OFFSET = 1_600_000_123_456  # an epoch-microsecond start, as real recordings have
@@ -125,3 +126,11 @@ def test_bad_root_entries_name_the_field(recorded, tmp_path, damage, words):
     with pytest.raises(UserError, match=words) as info:
         Dataset(bad)
     assert str(bad) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_writer_refuses_epoch_timestamps_before_allocating(tmp_path):
+    ev = EventBatch(np.zeros(2, np.uint16), np.zeros(2, np.uint16), np.array([OFFSET, OFFSET + 5]), np.ones(2, np.uint8))
+    with pytest.raises(ValueError, match="rebase the timestamps and keep the start in t_offset_us"):
+        with DatasetWriter(tmp_path / "epoch.h5", 64, 48) as w:
+            w.append_events(ev)
+    assert list(tmp_path.iterdir()) == []
