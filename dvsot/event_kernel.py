@@ -38,21 +38,23 @@ def _levels(l1, l0, base, off, cp, cn):
 
 
 @numba.njit(cache=True, nogil=True)
-def interval_events(L1, last, base, off, ref, gate, cp, cn, last_event, refractory_us, t0, t1, width, scratch):
+def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_event, refractory_us, t0, t1, width,
+                    scratch):
     """Crossings of every pixel between samples last (t0) and L1 (t1): finite, then x, y, t (us), p in time order.
 
     finite is False (and nothing is changed) if L1 holds NaN or an infinity.
 
     L1, last and base are log intensities (float64, one per pixel); off is the reference minus base and
-    ref = base + off (updated in place, with last_event in us); cp and cn the per-pixel thresholds, gate
-    a float32 just below the smaller of the two; scratch an int32 array of one entry per pixel.
+    ref = base + off (updated in place, with last_event in us); cp and cn the per-pixel thresholds,
+    gate_on and gate_off float32s just below them; scratch an int32 array of one entry per pixel.
     """
-    # pass 1 reads 20 bytes a pixel: one that has not moved a threshold from its reference cannot fire
+    # pass 1 reads 24 bytes a pixel: one that has not moved a threshold from its reference cannot fire
     n_cand = 0
     finite = True
     for i in range(L1.shape[0]):  # branch-free: the store always happens, the count moves on candidates
         scratch[n_cand] = i
-        n_cand += abs(L1[i] - ref[i]) >= gate[i]
+        d = L1[i] - ref[i]
+        n_cand += (d >= gate_on[i]) | (d <= -gate_off[i])
         finite &= abs(L1[i]) < np.inf  # False for NaN too
     if not finite:
         return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)

@@ -46,8 +46,8 @@ from dvsot.errors import UserError
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
 
 
-# The kernel's first pass compares |L1 - ref| with a float32 gate this much below the pixel's smaller
-# threshold: far more than the rounding of ref or of the float32, so no pixel that fires is skipped.
+# The kernel's first pass compares L1 - ref with float32 gates this much inside the pixel's thresholds:
+# far more than the rounding of ref or of the float32, so no pixel that fires is skipped.
 GATE_MARGIN = 1e-6
 
 
@@ -178,7 +178,7 @@ class EventSimulator:
         n = self.width * self.height
         self._cp, self._cn = cp, cn
         self._cp_px, self._cn_px = (c if isinstance(c, np.ndarray) else np.full(n, float(c)) for c in (cp, cn))
-        self._gate = (np.minimum(self._cp_px, self._cn_px) * (1 - GATE_MARGIN)).astype(np.float32)
+        self._gate_on, self._gate_off = ((c * (1 - GATE_MARGIN)).astype(np.float32) for c in (self._cp_px, self._cn_px))
 
     @property
     def thresholds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -224,9 +224,9 @@ class EventSimulator:
         self._warm.join()
         from dvsot.event_kernel import interval_events
 
-        finite, x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate,
-                                               self._cp_px, self._cn_px, self._last_event, float(p.refractory_us),
-                                               t0, t1, self.width, self._scratch)
+        finite, x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate_on,
+                                               self._gate_off, self._cp_px, self._cn_px, self._last_event,
+                                               float(p.refractory_us), t0, t1, self.width, self._scratch)
         if not finite:  # found before the kernel changed anything
             raise UserError("frame contains NaN or infinite values")
         signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
@@ -276,8 +276,9 @@ def _load_kernel() -> None:
         from dvsot.event_kernel import interval_events
 
         one = np.zeros(1)
-        interval_events(one, one, one, one.copy(), one.copy(), np.ones(1, np.float32), one + 1, one + 1, one - np.inf,
-                        0.0, 0, 1, 1, np.empty(1, np.int32))
+        gate = np.ones(1, np.float32)
+        interval_events(one, one, one, one.copy(), one.copy(), gate, gate, one + 1, one + 1, one - np.inf, 0.0, 0, 1, 1,
+                        np.empty(1, np.int32))
     except Exception:  # the same import in step() raises it where it can be reported
         pass
 
