@@ -48,22 +48,23 @@ def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_ev
     ref = base + off (updated in place, with last_event in us); cp and cn the per-pixel thresholds,
     gate_on and gate_off float32s just below them; scratch an int32 array of one entry per pixel.
     """
-    # pass 1 reads 24 bytes a pixel: one that has not moved a threshold from its reference cannot fire
+    # pass 1 reads 24 bytes a pixel: one that has not moved a threshold from its reference cannot fire;
+    # for the few that have, the crossings are counted (before the refractory test: room for every event)
     n_cand = 0
+    bound = 0
     finite = True
-    for i in range(L1.shape[0]):  # branch-free: the store always happens, the count moves on candidates
-        scratch[n_cand] = i
-        d = L1[i] - ref[i]
-        n_cand += (d >= gate_on[i]) | (d <= -gate_off[i])
-        finite &= abs(L1[i]) < np.inf  # False for NaN too
+    for i in range(L1.shape[0]):
+        li = L1[i]
+        d = li - ref[i]
+        finite &= abs(li) < np.inf  # False for NaN too
+        if (d >= gate_on[i]) | (d <= -gate_off[i]):
+            _, _, _, _, k_lo, k_hi = _levels(li, last[i], base[i], off[i], cp[i], cn[i])
+            if k_hi >= k_lo:
+                scratch[n_cand] = i
+                n_cand += 1
+                bound += int(k_hi - k_lo) + 1
     if not finite:
         return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)
-    bound = 0  # crossings before the refractory test: room for every event
-    for j in range(n_cand):
-        i = scratch[j]
-        _, _, _, _, k_lo, k_hi = _levels(L1[i], last[i], base[i], off[i], cp[i], cn[i])
-        if k_hi >= k_lo:
-            bound += int(k_hi - k_lo) + 1
     code = np.empty(bound, np.int64)  # pixel * 2 + polarity
     trel = np.empty(bound, np.int64)  # whole microseconds after t0
     span_us = float(t1 - t0)

@@ -186,18 +186,32 @@ class EventSimulator:
         return self._cp_px.reshape(self.height, self.width), self._cn_px.reshape(self.height, self.width)
 
     def _log_frame(self, frame: np.ndarray, is_log: bool, copy: bool) -> np.ndarray:
-        """The frame as flat float64 log intensity: in self._buf, or the frame itself (is_log, float64, copy=False)."""
+        """The frame as flat float64 log intensity: in self._buf, or the frame itself (is_log, float64, copy=False).
+
+        The first frame is checked here in full; later ones for negative intensities only (NaN and
+        infinities are found by the kernel's first pass).
+        """
         a = np.asarray(frame)
         if a.shape != (self.height, self.width):
             raise UserError(f"frame has shape {a.shape}, expected ({self.height}, {self.width})")
         if a.dtype.kind not in "fiu":
             raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
+        first = self._t_prev is None
         if not is_log:
-            return log_intensity(a, self.params.log_eps, self._buf)
+            if first:
+                return log_intensity(a, self.params.log_eps, self._buf)
+            if a.min() < 0:  # NaN and inf are left to the kernel
+                raise UserError("frame contains negative intensities")
+            np.add(a.reshape(-1), self.params.log_eps, out=self._buf, dtype=np.float64, casting="unsafe")
+            return np.log(self._buf, out=self._buf)
         if not copy and a.dtype == np.float64 and a.flags.c_contiguous:
-            return a.reshape(-1)
-        np.copyto(self._buf, a.reshape(-1), casting="unsafe")
-        return self._buf  # log frames are checked for NaN and inf by the kernel (the first one below)
+            out = a.reshape(-1)
+        else:
+            out = self._buf
+            np.copyto(out, a.reshape(-1), casting="unsafe")
+        if first and not np.isfinite(out.sum()):
+            raise UserError("frame contains NaN or infinite values")
+        return out
 
     def step(self, frame: np.ndarray, t_us: int, is_log: bool = False, copy: bool = True) -> EventBatch:
         """Events (time-sorted) between the previous frame and this one, at t_us microseconds.
@@ -208,8 +222,6 @@ class EventSimulator:
         t_us = int(t_us)
         L1 = self._log_frame(frame, is_log, copy)
         if self._t_prev is None:
-            if is_log and not np.isfinite(L1.sum()):
-                raise UserError("frame contains NaN or infinite values")
             self._base[:] = L1
             self._ref[:] = L1
             self._last[:] = L1
