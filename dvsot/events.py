@@ -34,7 +34,6 @@ already in time order.
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
 from typing import Literal
 
@@ -157,10 +156,6 @@ class EventSimulator:
         self._last_is_ours = True  # False while _last is a caller's frame (step with copy=False)
         self._last_event = np.full(n, -np.inf)  # time of the last emitted event, float microseconds
         self._t_prev: int | None = None
-        # numba's import and the kernel's load from its cache take a few tenths of a second: done on a
-        # thread (much of it outside the GIL) while the caller opens files and decodes the first frames
-        self._warm = threading.Thread(target=_load_kernel, name="load event kernel", daemon=True)
-        self._warm.start()
         self._buf = np.empty(n, np.float64)
 
     def _draw_thresholds(self) -> tuple[np.ndarray | float, np.ndarray | float]:
@@ -233,8 +228,7 @@ class EventSimulator:
         p = self.params
         if p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0):
             self._set_thresholds(*self._draw_thresholds())
-        self._warm.join()
-        from dvsot.event_kernel import interval_events
+        from dvsot.event_kernel import interval_events  # numba: imported when the first events are due
 
         finite, x, y, t, pol = interval_events(L1, self._last, self._base, self._off, self._ref, self._gate_on,
                                                self._gate_off, self._cp_px, self._cn_px, self._last_event,
@@ -280,19 +274,6 @@ class EventSimulator:
         if not parts:
             return _empty_crossings()
         return tuple(np.concatenate(col) for col in zip(*parts))
-
-
-def _load_kernel() -> None:
-    """Import the compiled kernel and run it once on one pixel (loads its machine code from numba's cache)."""
-    try:
-        from dvsot.event_kernel import interval_events
-
-        one = np.zeros(1)
-        gate = np.ones(1, np.float32)
-        interval_events(one, one, one, one.copy(), one.copy(), gate, gate, one + 1, one + 1, one - np.inf, 0.0, 0, 1, 1,
-                        np.empty(1, np.int32))
-    except Exception:  # the same import in step() raises it where it can be reported
-        pass
 
 
 def log_intensity(frame: np.ndarray, log_eps: float, out: np.ndarray | None = None) -> np.ndarray:

@@ -12,7 +12,7 @@ import pytest
 import dvsot
 from dvsot.background import OrderedWorker, read_ahead
 from dvsot.dataset import DatasetWriter, open_dataset
-from dvsot.errors import UserError
+from dvsot.errors import RunError, UserError
 from dvsot.events import EventParams, EventSimulator, log_intensity
 from dvsot.frames import open_frames
 
@@ -106,7 +106,7 @@ def test_simulate_frames_writes_what_the_simulator_gives_and_a_failed_write_leav
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(DatasetWriter, "_write_columns", full_disk)
-    with pytest.raises(OSError, match="No space left"):
+    with pytest.raises(RunError, match="No space left"):
         with DatasetWriter(tmp_path / "b.h5", src.width, src.height) as w:
             dvsot.simulate_frames(src.frames(), t_us, EventSimulator(src.width, src.height, params, 3), w)
             w.close(int(t_us[-1]) + 1)
