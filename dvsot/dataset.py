@@ -342,6 +342,7 @@ class DatasetWriter:
             stored = {k: _decode_attr(v) for k, v in f.attrs.items()}
             _write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
             f.close()
+            _read_back(self.tmp_path, self.path)
             self._run.done(self.path)
             if self._own_run is not None:
                 from dvsot.outputs import writing
@@ -364,6 +365,19 @@ class DatasetWriter:
         except Exception:
             pass
         self._run.drop(self.path)
+
+
+def _read_back(tmp: Path, path: Path) -> None:
+    """Open the finished temp file as a reader would and read every event: a file that fails its checks (a chunk
+    whose Fletcher-32 checksum does not match, seen once in a long render) raises RunError and never replaces path."""
+    from dvsot.errors import RunError
+
+    try:
+        with Dataset(tmp) as ds:
+            ds.verify()
+    except UserError as exc:
+        raise RunError(f"{path}: the file just written failed its read-back check, nothing replaced "
+                       f"({str(exc).removeprefix(str(tmp) + ': ')})") from None
 
 
 # Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).

@@ -161,3 +161,20 @@ def test_find_datasets_by_directory_glob_list_and_split(tmp_path):
         find_datasets(tmp_path, split="val")
     with pytest.raises(UserError, match="no such file"):
         find_datasets(tmp_path / "nope")
+
+
+def test_a_file_that_fails_its_read_back_never_replaces_the_old_one(tmp_path, monkeypatch):
+    from dvsot.errors import RunError
+
+    rng = np.random.default_rng(1)
+    path = tmp_path / "seq.h5"
+    write_file(path, random_events(rng, 500, 95_000), 100_000, name="old")
+    before = path.read_bytes()
+
+    def corrupt_chunk(self):  # what a chunk failing its Fletcher-32 checksum looks like to the reader
+        raise self._damaged("cannot read /events/y events 0..499, its stored data is corrupt")
+
+    monkeypatch.setattr(Dataset, "verify", corrupt_chunk)
+    with pytest.raises(RunError, match=r"seq\.h5: the file just written failed its read-back check.*/events/y"):
+        write_file(path, random_events(rng, 500, 95_000), 100_000, name="new")
+    assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["seq.h5"]
