@@ -6,8 +6,9 @@ stand for one evaluation; a segment costs n_candidates of them). Fast search run
 once over the region holding all candidates and only the fully connected layers per candidate
 (tracking candidates drawn around the ground truth), with bilinear crops (the tracker's default:
 fc1's sums of the up to four integer crops around a candidate are mixed, MACs) and with
-nearest-cell ones. Each distinct integer crop is evaluated once. The ANN row is the same layers run densely as a
-conventional network on one frame per candidate, counted by torch's FLOP counter.
+nearest-cell ones. Each distinct integer crop is evaluated once. The ANN rows are counted by torch's FLOP counter on the
+layers the trackers run: SCTN's ANN twin (sctn/ann.py) once per candidate, SiamFC's backbone on its
+scale pyramid and the cross-correlation once per frame (benchmarks/siamfc/tracker.py frame_macs).
 """
 
 from __future__ import annotations
@@ -73,41 +74,79 @@ def sample_search(model, segments: list, n_candidates: int, seed: int = 0, crop:
     return {key: float(np.mean([r[key] for r in runs])) for key in ("ac_ops", "mac_ops", "energy_pj")}
 
 
-def energy_table(model, files: list[Path], n_candidates: int = 256, n_segments: int = 64, seed: int = 0) -> dict:
-    """Rows {method: {ac_ops, mac_ops, energy_pj}} per tracking segment (n_candidates), plus firing statistics."""
-    from sctn.energy import E_AC_PJ, E_MAC_PJ, ann_macs
+# the paper's Table 3: operations and energy per frame (ANNs) or segment (SCTN)
+PAPER_ROWS = {"paper SCTN (Table 3)": {"ac_ops": 7.69e6, "mac_ops": 0.0, "energy_pj": 6.93e6},
+              "paper SiamRPN (Table 3)": {"ac_ops": 0.0, "mac_ops": 4.82e9, "energy_pj": 2.22e10},
+              "paper SiamMask (Table 3)": {"ac_ops": 0.0, "mac_ops": 1.26e10, "energy_pj": 5.79e10}}
+REFERENCE = "SCTN per candidate (paper)"
+
+
+def ann_rows(n_candidates: int, twin=None, siamfc=None, siamfc_scales: int = 3, response_up: int = 16) -> dict:
+    """Rows of the ANN trackers counted on their layers: the twin (n_candidates evaluations per segment) and SiamFC
+    (one update per frame: the scale pyramid); {} for a model not given."""
+    from sctn.energy import E_MAC_PJ
+
+    rows = {}
+    if twin is not None:
+        from sctn.ann import twin_macs
+
+        macs = twin_macs(twin)["mac_ops"] * n_candidates
+        rows[f"SCTN's ANN twin (sctn_ann, input {twin.cfg.input})"] = {"ac_ops": 0.0, "mac_ops": macs,
+                                                                     "energy_pj": macs * E_MAC_PJ}
+    if siamfc is not None:
+        from benchmarks.siamfc.tracker import frame_macs
+
+        macs = frame_macs(siamfc, siamfc_scales, response_up)["mac_ops"]
+        rows[f"SiamFC (siamfc), {siamfc_scales} scales"] = {"ac_ops": 0.0, "mac_ops": macs,
+                                                           "energy_pj": macs * E_MAC_PJ}
+    return rows
+
+
+def energy_table(model, files: list[Path], n_candidates: int = 256, n_segments: int = 64, seed: int = 0,
+                 twin=None, siamfc=None, notes: tuple[str, ...] = ()) -> dict:
+    """Rows {method: {ac_ops, mac_ops, energy_pj, x_sctn}} per tracking segment (n_candidates) or frame, plus firing
+    statistics; x_sctn is a row's energy over SCTN's per-candidate energy (the paper's ratio). `twin` (sctn.ann's
+    SCTNTwin) and `siamfc` (benchmarks.siamfc's SiamFC) add their rows; `notes` are printed with the table."""
+    from sctn.energy import E_AC_PJ
 
     segments = _sample_segments(files, n_segments, seed)
     firing = sample_firing(model, segments)
     searches = {crop: sample_search(model, segments, n_candidates, seed, crop) for crop in ("nearest", "bilinear")}
-    ann = ann_macs(model.cfg)["mac_ops"]
     faithful = firing["ac_ops_per_evaluation"] * n_candidates
-    rows = {"SCTN per candidate (paper)": {"ac_ops": faithful, "mac_ops": 0.0, "energy_pj": faithful * E_AC_PJ},
+    rows = {REFERENCE: {"ac_ops": faithful, "mac_ops": 0.0, "energy_pj": faithful * E_AC_PJ},
             "SCTN fast search (bilinear)": searches["bilinear"],
             "SCTN fast search (nearest cell)": searches["nearest"],
-            "same-structure ANN": {"ac_ops": 0.0, "mac_ops": ann * n_candidates,
-                                   "energy_pj": ann * n_candidates * E_MAC_PJ},
-            "paper SCTN (Table 3)": {"ac_ops": 7.69e6, "mac_ops": 0.0, "energy_pj": 6.93e6}}
-    per_candidate = {"SCTN": firing["ac_ops_per_evaluation"], "same-structure ANN": ann}
+            **ann_rows(n_candidates, twin, siamfc), **PAPER_ROWS}
+    for row in rows.values():
+        row["x_sctn"] = row["energy_pj"] / rows[REFERENCE]["energy_pj"] if rows[REFERENCE]["energy_pj"] else float("nan")
+    per_candidate = {"SCTN": firing["ac_ops_per_evaluation"]}
+    if twin is not None:
+        from sctn.ann import twin_macs
+
+        per_candidate["sctn_ann"] = twin_macs(twin)["mac_ops"]
     return {"per_segment": rows, "per_candidate_ops": per_candidate, "n_candidates": n_candidates,
-            "network": model.cfg.model_dump(), "firing": firing}
+            "network": model.cfg.model_dump(), "firing": firing, "notes": list(notes)}
 
 
 def format_energy_table(table: dict) -> str:
     """Terminal text of the energy table."""
-    lines = [f"{'per segment (' + str(table['n_candidates']) + ' candidates)':30s} {'AC ops':>10s} {'MAC ops':>10s}"
-             f" {'energy':>12s}", "-" * 66]
+    lines = [f"{'per segment (' + str(table['n_candidates']) + ' candidates) or frame':42s} {'AC ops':>10s} "
+             f"{'MAC ops':>10s} {'energy':>12s} {'x SCTN':>8s}", "-" * 86]
     for name, row in table["per_segment"].items():
-        lines.append(f"{name:30s} {row['ac_ops']:>10.3g} {row['mac_ops']:>10.3g} {row['energy_pj']:>9.3g} pJ")
+        lines.append(f"{name:42s} {row['ac_ops']:>10.3g} {row['mac_ops']:>10.3g} {row['energy_pj']:>9.3g} pJ"
+                     f" {row.get('x_sctn', float('nan')):>8.3g}")
     per = table["per_candidate_ops"]
     net = table["network"]
-    lines.append(f"one candidate evaluation: SCTN {per['SCTN']:.3g} AC, ANN {per['same-structure ANN']:.3g} MAC; "
+    twin = f", ANN twin {per['sctn_ann']:.3g} MAC" if "sctn_ann" in per else ""
+    lines.append(f"one candidate evaluation: SCTN {per['SCTN']:.3g} AC{twin}; "
                  f"network conv {'/'.join(map(str, net['channels']))}, fc {'/'.join(map(str, net['fc']))}/2")
     rates = table["firing"]["firing_rate_by_layer"]
     lines.append("firing rate per layer: " + ", ".join(f"{k} {v:.4f}" for k, v in rates.items()))
     lines.append(f"(SNN ops from {table['firing']['segments']} sampled segments; fast search: convolutions once "
                  "over the candidates' region, fc1 once per distinct integer crop; bilinear adds the MACs that "
-                 "mix fc1's sums of the four crops around each candidate)")
+                 "mix fc1's sums of the four crops around each candidate; ANN MACs counted on the layers run; "
+                 "AC 0.9 pJ, MAC 4.6 pJ; x SCTN: energy over SCTN's per-candidate energy)")
+    lines += table.get("notes", [])
     return "\n".join(lines)
 
 

@@ -55,10 +55,12 @@ def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", i
     return p
 
 
-def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
+def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: dict, kind: str = "sctn") -> Path:
     """Write weights, config and metadata, plus a .json of the metadata: both new or both old (one run's pair).
 
     Both files carry the same `run` id (the .pt in its metadata), so a reader can tell they belong together.
+    `kind` names the model the file holds (sctn, sctn_ann, siamfc): its format is "<kind>-checkpoint", so a
+    checkpoint given to another model is refused naming what it holds (read_checkpoint).
     """
     p = check_checkpoint_output(path)
     meta_path = metadata_path(p)
@@ -66,27 +68,43 @@ def save_checkpoint(path: str | os.PathLike, model: SCTN, meta: dict) -> Path:
     with run_outputs() as run:  # renamed together when both are complete (dvsot.outputs)
         meta = {**meta, "run": run.run_id}
         with replacing(p) as tmp, open(tmp, "wb") as f:  # a file object: a full disk is an OSError, not torch's
-            torch.save({"format": "sctn-checkpoint", "version": 1, "config": model.cfg.model_dump(),
+            torch.save({"format": f"{kind}-checkpoint", "version": 1, "config": model.cfg.model_dump(),
                         "state_dict": state, "meta": meta}, f)
         with replacing(meta_path) as tmp_json:
-            tmp_json.write_text(json.dumps({"config": model.cfg.model_dump(), **meta}, indent=2, default=str))
+            tmp_json.write_text(json.dumps({"model": kind, "config": model.cfg.model_dump(), **meta}, indent=2,
+                                           default=str))
     return p
+
+
+def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str = "a") -> dict:
+    """The stored dict of a `kind` checkpoint (format "<kind>-checkpoint"); UserError naming the file otherwise,
+    and the model it holds when it is another dvsot model's checkpoint. `label` (after `article`) names the
+    model in messages."""
+    p = Path(path)
+    kind_problem = file_kind_problem(p)  # before torch.load: a FIFO would block it, a directory is no checkpoint
+    if kind_problem == "no such file":
+        raise UserError(f"{p}: no such checkpoint")
+    if kind_problem:
+        raise UserError(f"{p}: {kind_problem}, not a checkpoint file")
+    try:
+        blob = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises several kinds for damaged files
+        raise UserError(f"{p}: not a readable {label} checkpoint ({type(exc).__name__})") from None
+    fmt = blob.get("format") if isinstance(blob, dict) else None
+    if fmt != f"{kind}-checkpoint":
+        held = fmt.removesuffix("-checkpoint") if isinstance(fmt, str) and fmt.endswith("-checkpoint") else None
+        if held:
+            raise UserError(f"{p}: holds a {held} model, not {article} {label} one (it is for --tracker {held})")
+        raise UserError(f"{p}: not {article} {label} checkpoint")
+    return blob
 
 
 def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
     """The model and metadata of a checkpoint (the shipped default if path is None); UserError if unusable."""
     p = Path(path) if path is not None else default_checkpoint_path()
-    kind = file_kind_problem(p)  # before torch.load: a FIFO would block it, a directory is no checkpoint
-    if kind == "no such file":
-        raise UserError(f"{p}: no such checkpoint" + (" (train one with `dvsot train`)" if path is None else ""))
-    if kind:
-        raise UserError(f"{p}: {kind}, not a checkpoint file")
-    try:
-        blob = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises several kinds for damaged files
-        raise UserError(f"{p}: not a readable SCTN checkpoint ({type(exc).__name__})") from None
-    if not isinstance(blob, dict) or blob.get("format") != "sctn-checkpoint":
-        raise UserError(f"{p}: not an SCTN checkpoint")
+    if path is None and not p.is_file():
+        raise UserError(f"{p}: no such checkpoint (train one with `dvsot train`)")
+    blob = read_checkpoint(p, "sctn", "SCTN", article="an")
     config = dict(blob["config"])
     if "bias" not in config:  # written before the layers' bias became a setting: biased if it has bias tensors
         config["bias"] = any(k.endswith(".bias") for k in blob["state_dict"])

@@ -3,9 +3,8 @@
 SNN: every spike costs one accumulate (AC) per synapse it drives (its fan-out): input events into
 conv1, each layer's spikes into the next; the output layer's spikes drive nothing. A convolution's
 fan-out per input pixel is (out channels) x (number of output positions whose kernel covers the
-pixel); a fully connected layer's is its output width. ANN: the same layers as a conventional
-network on one frame, counted by torch's FLOP counter (MAC = FLOPs / 2). Energy: AC 0.9 pJ,
-MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
+pixel); a fully connected layer's is its output width. ANN MACs are counted on the layers that run
+(sctn/ann.py count_macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
 """
 
 from __future__ import annotations
@@ -14,7 +13,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from sctn.network import SCTN, NetworkConfig
+from sctn.network import SCTN
 
 E_AC_PJ = 0.9
 E_MAC_PJ = 4.6
@@ -87,23 +86,6 @@ def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, b
     macs = rec["mix_macs"]
     return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]), "ac_ops": ac,
             "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ}
-
-
-def ann_macs(cfg: NetworkConfig, steps: int = 1) -> dict:
-    """Dense MACs of a conventional ANN with SCTN's layers on `steps` frames (torch FLOP counter)."""
-    from torch.utils.flop_counter import FlopCounterMode
-
-    model = SCTN(cfg)
-    x = torch.zeros(steps, 2, cfg.input_size, cfg.input_size)
-    with FlopCounterMode(display=False) as counter, torch.no_grad():
-        h = x
-        for conv in model.convs:
-            h = F.relu(conv(h))
-        h = h.flatten(1)
-        for fc in model.fcs:
-            h = F.relu(fc(h))
-    macs = counter.get_total_flops() / 2
-    return {"mac_ops": macs, "energy_pj": macs * E_MAC_PJ, "frames": steps}
 
 
 def energy_pj(ac_ops: float = 0.0, mac_ops: float = 0.0, e_ac: float = E_AC_PJ, e_mac: float = E_MAC_PJ) -> dict:

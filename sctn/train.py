@@ -137,8 +137,10 @@ def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Te
     return loss, float(ops.detach())
 
 
-def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print) -> tuple[SCTN, dict]:
-    """Train a new SCTN on the given dataset files; returns the model and a history of metrics."""
+def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
+          build=SCTN) -> tuple[SCTN, dict]:
+    """Train a new SCTN on the given dataset files; returns the model and a history of metrics. `build(cfg.network)`
+    makes the network (another with SCTN's interface: sctn.ann's twin); its `calibrate`, if any, runs first."""
     from tqdm import tqdm
 
     rng = np.random.default_rng(cfg.seed)
@@ -158,10 +160,11 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print)
             return ([(s.events, s.t0_us, s.box) for s in segs],
                     [(datasets[d].width, datasets[d].height) for d, _ in items])
 
-        model = SCTN(cfg.network)
+        model = build(cfg.network)
         calib_items = [train_items[k] for k in rng.choice(len(train_items), min(8, len(train_items)), replace=False)]
         calib_batch = segment_batch(*load(calib_items), rng, cfg.network)[0]  # drawn either way: same rng stream
-        history_calibration = model.calibrate(calib_batch) if cfg.calibrate else None
+        calibrate = cfg.calibrate and hasattr(model, "calibrate")  # the ANN twin has no calibration
+        history_calibration = model.calibrate(calib_batch) if calibrate else None
         opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
 
         val_pick = [val_items[i] for i in np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)] if val_items else []

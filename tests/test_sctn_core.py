@@ -8,7 +8,7 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_region
-from sctn.energy import ann_macs, conv_fanout, count_search_ops, count_synaptic_ops, energy_pj
+from sctn.energy import conv_fanout, count_search_ops, count_synaptic_ops, energy_pj
 from sctn.loss import feedback, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import CLIF, psp_kernel
@@ -198,9 +198,6 @@ def test_energy_counts_on_a_hand_made_spike_pattern():
     fan = conv_fanout(net.convs[1], (26, 26))
     # 3x3 stride 2: even interior pixels lie in 2x2 windows, odd ones in one
     assert fan[0, 0] == 16 and fan[2, 2] == 16 * 4 and fan[3, 3] == 16 and fan[2, 3] == 16 * 2
-    macs = ann_macs(cfg)["mac_ops"]
-    by_hand = 8 * 2 * 16 * 26 * 26 + 16 * 8 * 9 * 12 * 12 + 16 * 16 * 9 * 10 * 10 + 1600 * 64 + 64 * 32 + 32 * 2
-    assert macs == by_hand
     assert energy_pj(10, 2)["energy_pj"] == pytest.approx(10 * 0.9 + 2 * 4.6)
 
 

@@ -27,6 +27,8 @@ from dvsot.errors import UserError
 # Built-ins are imported on first use, so listing trackers does not import torch or OpenCV.
 BUILTIN: dict[str, str] = {
     "sctn": "benchmarks.trackers.sctn",
+    "sctn_ann": "benchmarks.trackers.sctn_ann",
+    "siamfc": "benchmarks.siamfc.tracker",
     "rct": "benchmarks.trackers.rct",
     "csrt": "benchmarks.trackers.frame_based",
     "kcf": "benchmarks.trackers.frame_based",

@@ -13,7 +13,11 @@ protocol) VOT trajectories (benchmarks/results.py).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
---checkpoint and sctn.* options are errors unless --tracker sctn is given.
+--checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc): an
+error without one or with several (give each its own with --option NAME.checkpoint=PATH); a
+checkpoint of another model is refused naming the model it holds. The energy table (Table 3) is made
+when any of those three runs: SCTN's rows from the run's SCTN checkpoint (or the shipped one), the ANN
+rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
 
 Outputs are written only when every run has finished, as temp files renamed into place together
 (then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
@@ -37,12 +41,14 @@ from pathlib import Path
 
 DEFAULT_DATA = "data/dvsot21"
 MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.outputs)
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot bench`."""
     p.add_argument("--tracker", action="append", required=True, metavar="NAME",
-                   help="tracker to run (repeatable): sctn, rct, csrt, kcf, mil or one you registered")
+                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, rct, csrt, kcf, mil or one you "
+                        "registered")
     p.add_argument("--data", nargs="+", default=None,
                    help=f"dataset files, directories or globs (default: {DEFAULT_DATA})")
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
@@ -55,9 +61,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
     p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
-    p.add_argument("--checkpoint", help="SCTN checkpoint for --tracker sctn (default: the shipped one); "
-                                        "an error without --tracker sctn")
-    p.add_argument("--no-energy", action="store_true", help="skip the energy table when sctn runs")
+    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann or siamfc (default: the "
+                                        "shipped one); an error without one of them, or with several")
+    p.add_argument("--no-energy", action="store_true", help="skip the energy table (made when sctn, sctn_ann or "
+                                                           "siamfc runs)")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
                    help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05 "
                         "(checked before the run)")
@@ -78,6 +85,8 @@ class Plan:
     out_dir: Path
     jobs: int
     model: object | None = None  # the SCTN model of the checkpoint, for the energy table
+    ann_models: dict = field(default_factory=dict)  # {"twin": ..., "siamfc": ...} for the energy table's ANN rows
+    notes: tuple[str, ...] = ()  # lines printed under the energy table
     tasks: list[tuple[str, str]] = field(default_factory=list)
 
 
@@ -208,7 +217,7 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
     from dvsot.errors import UserError
 
     detail = _error_text(exc)
-    if not options or (name == "sctn" and set(options) == {"checkpoint"}):
+    if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
         return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
     key = _option_key(exc, options)
     if key is not None:
@@ -218,6 +227,23 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
         elif "takes no arguments" in detail:
             detail = f"tracker '{name}' takes no options"
     return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
+
+
+def energy_ann_models(trackers: list[str], options: dict[str, dict]) -> tuple[dict, tuple[str, ...]]:
+    """The twin and SiamFC networks for the energy table's ANN rows: the run's checkpoints, else the shipped ones;
+    a row without a checkpoint is left out with a note saying so."""
+    from benchmarks.siamfc.model import default_siamfc_path, load_siamfc
+    from sctn.ann import default_twin_path, load_twin
+
+    models, notes = {}, []
+    for key, name, load, shipped in (("twin", "sctn_ann", load_twin, default_twin_path),
+                                     ("siamfc", "siamfc", load_siamfc, default_siamfc_path)):
+        path = options.get(name, {}).get("checkpoint")
+        if name in trackers or path is not None or shipped().is_file():
+            models[key] = load(path)[0]
+        else:
+            notes.append(f"({name}: no checkpoint at {shipped()}, its row is left out)")
+    return models, tuple(notes)
 
 
 def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
@@ -234,7 +260,7 @@ def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[st
             raise _option_error(name, options.get(name, {}), exc, specs) from None
 
 
-def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
+def _output_names(args: argparse.Namespace, energy: bool) -> dict[str, str]:
     """{file name in --out: the flag that asks for it}."""
     from benchmarks.tables import TABLE_FILES
 
@@ -245,7 +271,7 @@ def _output_names(args: argparse.Namespace, sctn: bool) -> dict[str, str]:
         names["iou_over_time.png"] = "--plots"
     for seq in args.video:
         names[video_name(seq)] = "--video"
-    if sctn and not args.no_energy:
+    if energy:
         names["energy.json"] = names["firing_rate.png"] = "--out (energy table)"
     return names
 
@@ -303,12 +329,18 @@ def plan(args: argparse.Namespace) -> Plan:
         tracker_class(name)
     options = _options(args.option, trackers)
     sctn = "sctn" in trackers
+    energy = not args.no_energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
     if args.checkpoint is not None:
-        if not sctn:
-            raise UserError(f"--checkpoint {args.checkpoint}: only used by --tracker sctn, which is not in this run")
-        if "checkpoint" in options.get("sctn", {}):
-            raise UserError("--option sctn.checkpoint: give the checkpoint once, with --checkpoint")
-        options.setdefault("sctn", {})["checkpoint"] = args.checkpoint
+        takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
+        if not takers:
+            raise UserError(f"--checkpoint {args.checkpoint}: only used by --tracker sctn, sctn_ann or siamfc, "
+                            "none of which is in this run")
+        if len(takers) > 1:
+            raise UserError(f"--checkpoint {args.checkpoint}: {', '.join(takers)} all take a checkpoint; give each "
+                            "its own with --option NAME.checkpoint=PATH")
+        if "checkpoint" in options.get(takers[0], {}):
+            raise UserError(f"--option {takers[0]}.checkpoint: give the checkpoint once, with --checkpoint")
+        options.setdefault(takers[0], {})["checkpoint"] = args.checkpoint
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     sequences = resolve_data(args.data, args.split)
     files = list(sequences.values())
@@ -316,14 +348,15 @@ def plan(args: argparse.Namespace) -> Plan:
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
         check_video(seq, sequences[seq])
-    check_outputs(out_dir, _output_names(args, sctn), files)
+    check_outputs(out_dir, _output_names(args, energy), files)
     for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
-    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
+    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn or energy else None
     check_trackers(trackers, options, args.option)
+    ann_models, notes = energy_ann_models(trackers, options) if energy else ({}, ())
     tasks = [(t, str(f)) for t in trackers for f in files]
     jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
-    return Plan(trackers, files, sequences, options, out_dir, jobs, model, tasks)
+    return Plan(trackers, files, sequences, options, out_dir, jobs, model, ann_models, notes, tasks)
 
 
 def track(p: Plan, args: argparse.Namespace) -> list:
@@ -417,7 +450,8 @@ def run(args: argparse.Namespace) -> int:
     if p.model is not None and not args.no_energy:
         from benchmarks.energy_table import energy_table
 
-        energy = energy_table(p.model, p.files)  # computed before writing: a crash here leaves --out as it was
+        # computed before writing: a crash here leaves --out as it was
+        energy = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
     print(format_ope(summary) if args.protocol == "ope" else terminal(summary))
     if energy is not None:
         from benchmarks.energy_table import format_energy_table

@@ -1,0 +1,150 @@
+"""SCTN's ANN twin (paper Fig. 8B): SCTN's layers with ReLU on one frame per candidate, trained and tracked as SCTN.
+
+Layers: SCTN's own (sctn/network.py NetworkConfig: the same widths, kernels and strides), each a
+convolution or fully connected layer followed by ReLU instead of C-LIF neurons; the two output units
+(0 = background, 1 = target) have no activation. Input: a candidate's canvas from sctn/encoding.py
+(the events inside the box, 107 x 107), in one of two forms (`TwinConfig.input`):
+
+- "bins" (default): the ten 1-ms steps x 2 polarities as 20 input channels (channel = 2 step + polarity).
+  The twin then sees exactly what SCTN sees, timing included, so the comparison is between the neuron
+  models (C-LIF over time against ReLU on one frame), not between inputs. It costs conv1 10x the MACs
+  of a 2-channel input (the energy table counts them).
+- "sum": the bins summed over time (2 channels, event counts per pixel, 0..10): SCTN's layer sizes
+  exactly, but the 1 ms timing is gone. A named option, off by default.
+
+The output is returned as a one-step "voltage" trace (B, 1, 2): the code written for SCTN, which takes
+each output's maximum over time (the eq. 5-6 loss of sctn/loss.py, training and fine-tuning of
+sctn/train.py, candidate scoring of sctn/tracker.py), runs the twin unchanged, with the target unit's
+output standing for V_max. So its loss mirrors eq. 5-6 on its output: it should reach theta + R_s on
+positives and stay below theta - 0.3 on negatives.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Literal
+
+import torch
+from pydantic import ConfigDict
+from torch import nn
+from torch.nn import functional as F
+
+from sctn.network import NetworkConfig
+
+KIND = "sctn_ann"
+TWIN_INPUTS = ("bins", "sum")
+
+
+class TwinConfig(NetworkConfig):
+    """SCTN's layer sizes (NetworkConfig; its neuron fields are unused) and the twin's input form."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    input: Literal["bins", "sum"] = "bins"
+
+    def in_channels(self) -> int:
+        """Input channels of conv1: 2 polarities x steps ("bins") or 2 ("sum")."""
+        return 2 * self.steps if self.input == "bins" else 2
+
+
+class SCTNTwin(nn.Module):
+    """SCTN's convolutions and fully connected layers with ReLU: a conventional ANN of the same structure."""
+
+    def __init__(self, cfg: TwinConfig | None = None) -> None:
+        super().__init__()
+        self.cfg = cfg = cfg or TwinConfig()
+        chans = (cfg.in_channels(),) + tuple(cfg.channels)
+        self.convs = nn.ModuleList(nn.Conv2d(chans[i], chans[i + 1], cfg.kernels[i], cfg.strides[i])
+                                   for i in range(3))
+        widths = (cfg.channels[-1] * cfg.conv_sizes()[-1] ** 2,) + tuple(cfg.fc) + (2,)
+        self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1]) for i in range(3))
+        for layer in list(self.convs) + list(self.fcs):  # He init for ReLU
+            nn.init.kaiming_uniform_(layer.weight, a=0.0)
+            nn.init.zeros_(layer.bias)
+
+    def frame(self, x: torch.Tensor) -> torch.Tensor:
+        """SCTN's input spikes (B, T, 2, H, W) as the twin's frame (B, C, H, W)."""
+        if self.cfg.input == "sum":
+            return x.sum(dim=1)
+        return x.reshape(x.shape[0], -1, *x.shape[3:])  # (step, polarity) -> channel 2 step + polarity
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Outputs (B, 1, 2) for input spikes x (B, T, 2, H, W): one step of SCTN's (B, T, 2) voltages."""
+        h = self.frame(x)
+        for conv in self.convs:
+            h = F.relu(conv(h))
+        h = h.flatten(1)
+        for k, fc in enumerate(self.fcs):
+            h = fc(h)
+            if k < 2:
+                h = F.relu(h)
+        return h[:, None]
+
+    def score(self, x: torch.Tensor) -> torch.Tensor:
+        """The target unit's output per candidate (B,), SCTN's maximum target voltage."""
+        return self(x)[:, 0, 1]
+
+
+def count_macs(fn, *inputs: torch.Tensor) -> dict:
+    """Multiply-accumulates of one call fn(*inputs) (a module or any function of modules), counted by torch's FLOP
+    counter on the operations that run (MAC = FLOPs / 2): {"mac_ops": total, "by_layer": {module: MACs}}."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    counter = FlopCounterMode(display=False)
+    with counter, torch.no_grad():
+        fn(*inputs)
+    counts = counter.get_flop_counts()
+    # leaves only (a parent module's count includes its children's): "SCTNTwin.convs.0", not "SCTNTwin.convs"
+    by_layer = {name: sum(ops.values()) / 2 for name, ops in counts.items()
+                if name != "Global" and not any(other.startswith(name + ".") for other in counts)}
+    rest = counter.get_total_flops() / 2 - sum(by_layer.values())
+    if rest > 0:  # functional calls outside any module (SiamFC's cross-correlation)
+        by_layer["functional"] = rest
+    return {"mac_ops": counter.get_total_flops() / 2, "by_layer": by_layer}
+
+
+def twin_macs(model: SCTNTwin) -> dict:
+    """MACs of one candidate evaluation of the twin, in total and per layer (counted on a 1-candidate batch)."""
+    cfg = model.cfg
+    return count_macs(model, torch.zeros(1, cfg.steps, 2, cfg.input_size, cfg.input_size))
+
+
+def train_twin(files: list[Path], cfg, progress: bool = True) -> tuple[SCTNTwin, dict]:
+    """Train a new twin exactly as sctn.train.train trains SCTN (same segments, samples, loss, optimiser, budget);
+    cfg is a sctn.train.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins")."""
+    from dataclasses import replace
+
+    from sctn.train import train
+
+    if cfg.ops_penalty > 0:
+        raise ValueError("the ANN twin has no spikes to penalise: ops_penalty must be 0")
+    if not isinstance(cfg.network, TwinConfig):
+        cfg = replace(cfg, network=TwinConfig(**cfg.network.model_dump()))
+    return train(files, cfg, progress=progress, build=SCTNTwin)
+
+
+def default_twin_path() -> Path:
+    """The twin checkpoint shipped beside SCTN's (trained by `dvsot train --model sctn_ann`)."""
+    from sctn.checkpoint import CHECKPOINT_DIR
+
+    return CHECKPOINT_DIR / "sctn_ann_dvsot21.pt"
+
+
+def load_twin(path: str | os.PathLike | None = None) -> tuple[SCTNTwin, dict]:
+    """The twin and metadata of a sctn_ann checkpoint (the shipped one if path is None); UserError if unusable."""
+    from dvsot.errors import UserError
+    from sctn.checkpoint import read_checkpoint
+
+    p = Path(path) if path is not None else default_twin_path()
+    if path is None and not p.is_file():
+        raise UserError(f"{p}: no such checkpoint (train one with `dvsot train --model sctn_ann`)")
+    blob = read_checkpoint(p, KIND, "sctn_ann", article="an")
+    try:
+        model = SCTNTwin(TwinConfig(**blob["config"]))
+        model.load_state_dict(blob["state_dict"])
+    except Exception as exc:  # a config or tensors that do not fit the twin
+        detail = " ".join(str(exc).split())[:200]
+        raise UserError(f"{p}: not a usable sctn_ann checkpoint ({type(exc).__name__}: {detail})") from None
+    model.eval()
+    return model, blob.get("meta", {})
