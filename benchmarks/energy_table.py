@@ -118,7 +118,8 @@ def energy_table(model, files: list[Path], n_candidates: int = 256, n_segments: 
             "SCTN fast search (nearest cell)": searches["nearest"],
             **ann_rows(n_candidates, twin, siamfc), **PAPER_ROWS}
     for row in rows.values():
-        row["x_sctn"] = row["energy_pj"] / rows[REFERENCE]["energy_pj"] if rows[REFERENCE]["energy_pj"] else float("nan")
+        ref = rows[REFERENCE]["energy_pj"]
+        row["x_sctn"] = row["energy_pj"] / ref if ref else float("nan")
     per_candidate = {"SCTN": firing["ac_ops_per_evaluation"]}
     if twin is not None:
         from sctn.ann import twin_macs

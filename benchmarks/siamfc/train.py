@@ -185,7 +185,10 @@ def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True) -> t
     model = SiamFC(cfg.network)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     val_rng = np.random.default_rng(cfg.seed + 1)
-    val_pick = [val_items[i] for i in np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)] if val_items else []
+    val_pick = []
+    if val_items:
+        spread = np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)
+        val_pick = [val_items[i] for i in spread]
     val_batch = None
     if val_pick:
         items = [(s, partner(val_rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in val_pick]

@@ -72,7 +72,7 @@ class SCTNBenchTracker(Tracker):
         """Score 256 candidates, return the top-3 mean box; every `energy_every` segments mark it for counting."""
         box = self.tracker.track(segment.events, segment.t0_us)
         self._updates += 1
-        if self.energy_every and self._updates % self.energy_every == 1:
+        if self.energy_every and (self._updates - 1) % self.energy_every == 0:  # updates 1, 1 + N, 1 + 2N, ...
             self._due = (segment, box)  # counted in energy_per_segment, outside the protocol's timed update
         return box
 
