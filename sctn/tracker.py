@@ -91,6 +91,8 @@ class SCTNTracker:
     def score(self, events: EventBatch, t0_us: int, boxes: np.ndarray) -> np.ndarray:
         """Maximum target-neuron voltage of each candidate over the time window."""
         cfg = self.model.cfg
+        if hasattr(self.model, "candidate_scores"):  # a model that scores the boxes from the events itself (sctn.ann)
+            return self.model.candidate_scores(events, t0_us, boxes)
         with torch.no_grad():
             if not self.fast:
                 # event-driven, equal to the dense evaluation; the dense one for a model where it would not be

@@ -48,6 +48,31 @@ def test_twin_macs_are_counted_on_the_layers_run():
     assert twin_macs(SCTNTwin(TwinConfig(input="sum")))["mac_ops"] == by_hand - conv1 + conv1 // 10
 
 
+@pytest.mark.parametrize("form", ["bins", "sum"])
+def test_twin_scores_from_the_events_equal_the_dense_evaluation(form, tmp_path):
+    from dvsot.dataset import Dataset
+    from sctn.ann import canvas_pixels
+    from sctn.encoding import encode_boxes
+    from sctn.samples import propose
+
+    test_file = moving_square_file(tmp_path / "t.h5", duration_ms=30, split="test")
+    with Dataset(test_file) as ds:
+        seg = ds.segment(1)
+    rng = np.random.default_rng(0)
+    boxes = np.concatenate([propose(rng, seg.box.astype(np.float64), 40, "gaussian", 0.6, 1.05, (160, 120)),
+                            [[0.0, 0.0, 150.0, 110.0]]])  # a box larger than the canvas: scaled down
+    x = encode_boxes(seg.events, seg.t0_us, boxes)
+    b, step, pol, v, u = canvas_pixels(seg.events, seg.t0_us, boxes)
+    assert len(b) == int(x.sum()) and torch.all(x[b, step, pol, v, u] == 1)
+    torch.manual_seed(1)
+    twin = SCTNTwin(TwinConfig(input=form)).eval()
+    for layer in list(twin.convs) + list(twin.fcs):
+        torch.nn.init.uniform_(layer.bias, -0.1, 0.1)
+    with torch.no_grad():
+        dense = twin.score(x).numpy()
+    np.testing.assert_allclose(twin.candidate_scores(seg.events, seg.t0_us, boxes), dense, rtol=1e-5, atol=1e-6)
+
+
 @pytest.fixture(scope="module")
 def twin_run(tmp_path_factory):
     """A tiny twin trained by SCTN's training code on a synthetic square, and a test sequence."""
@@ -187,3 +212,33 @@ def test_siamfc_tracker_moves_to_the_response_peak(tmp_path, monkeypatch):
 def test_count_macs_counts_a_linear_layer():
     layer = torch.nn.Linear(7, 3)
     assert count_macs(layer, torch.zeros(5, 7))["mac_ops"] == 5 * 7 * 3
+
+
+def test_bench_refuses_a_checkpoint_of_another_model(twin_run, tmp_path, capsys):
+    from dvsot.cli import main
+
+    model, _, test_file, _ = twin_run
+    twin = save_checkpoint(tmp_path / "twin.pt", model, {}, kind="sctn_ann")
+    sctn = save_checkpoint(tmp_path / "sctn.pt", SCTN(NetworkConfig(channels=(2, 2, 2), fc=(4, 4))), {})
+    cases = [(["--tracker", "siamfc", "--checkpoint", str(sctn)], f"{sctn}: holds a sctn model, not a siamfc one"),
+             (["--tracker", "sctn", "--checkpoint", str(twin)], f"{twin}: holds a sctn_ann model, not an SCTN one"),
+             (["--tracker", "sctn_ann", "--option", f"sctn_ann.checkpoint={sctn}"], f"{sctn}: holds a sctn model"),
+             (["--tracker", "sctn", "--tracker", "siamfc", "--checkpoint", str(sctn)], "sctn, siamfc all take a")]
+    for argv, words in cases:
+        out = tmp_path / "out"
+        assert main(["bench", *argv, "--data", str(test_file), "--out", str(out), "--quiet"]) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], (argv, err)
+        assert not out.exists()
+
+
+def test_train_refuses_flags_the_model_lacks(tmp_path, capsys):
+    from dvsot.cli import main
+
+    data = moving_square_file(tmp_path / "d.h5", width=64, height=48, size=12, duration_ms=30)
+    for model, flag in (("siamfc", ["--fc", "4", "4"]), ("siamfc", ["--loss", "linear"]),
+                        ("sctn_ann", ["--ops-penalty", "0.1"]), ("sctn", ["--input", "sum"])):
+        assert main(["train", "--model", model, "--data", str(data), "-o", str(tmp_path / "m.pt"), *flag]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"{flag[0]}: not a setting of --model {model}" in err[0]
+    assert not (tmp_path / "m.pt").exists()

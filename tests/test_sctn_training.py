@@ -108,7 +108,10 @@ def test_energy_table_counts_each_mode_from_the_spikes(trained):
     from benchmarks.energy_table import energy_table, format_energy_table
 
     model, _, _, test_file = trained
-    table = energy_table(model, [test_file], n_candidates=64, n_segments=4)
+    from sctn.ann import SCTNTwin, TwinConfig
+
+    twin = SCTNTwin(TwinConfig(**model.cfg.model_dump()))
+    table = energy_table(model, [test_file], n_candidates=64, n_segments=4, twin=twin)
     rows = table["per_segment"]
     faithful, nearest, bilinear = (rows[k] for k in ("SCTN per candidate (paper)", "SCTN fast search (nearest cell)",
                                                      "SCTN fast search (bilinear)"))
@@ -116,7 +119,9 @@ def test_energy_table_counts_each_mode_from_the_spikes(trained):
     # fast search: convolutions once and each distinct crop once, so far fewer operations than 64 evaluations
     assert 0 < nearest["ac_ops"] < faithful["ac_ops"] / 4 and nearest["mac_ops"] == 0
     assert bilinear["mac_ops"] > 0 and bilinear["energy_pj"] > nearest["energy_pj"]
-    assert rows["same-structure ANN"]["mac_ops"] == pytest.approx(table["per_candidate_ops"]["same-structure ANN"] * 64)
+    twin_row = rows["SCTN's ANN twin (sctn_ann, input bins)"]
+    assert twin_row["mac_ops"] == pytest.approx(table["per_candidate_ops"]["sctn_ann"] * 64)
+    assert twin_row["x_sctn"] == pytest.approx(twin_row["energy_pj"] / faithful["energy_pj"])
     rates = table["firing"]["firing_rate_by_layer"]
     assert all(0 <= r <= 1 for r in rates.values()) and rates["input"] > 0
     assert "fast search (nearest cell)" in format_energy_table(table)

@@ -2,7 +2,7 @@
 its synaptic operations; print JSON.
 
     python -m benchmarks.perf.bench_tracking [--data FILE.h5] [--checkpoint CKPT] [--segments 50] [--repeat 3]
-        [--fast-only]
+        [--fast-only] [--ann | --ann-only] [--twin-checkpoint CKPT] [--siamfc-checkpoint CKPT]
     python -m benchmarks.perf.bench_tracking --sequences FILE.h5 [FILE.h5 ...] [--checkpoint CKPT] [--drop-biases]
         [--segments 50]
 
@@ -16,6 +16,8 @@ Without --data a synthetic 160x120 sequence (a textured square, made in numpy) i
 tracker time per segment (scoring the candidates), fine-tuning excluded; one torch thread per
 process as in `dvsot bench`, plus a two-thread run. This machine's speed drifts by tens of percent
 between runs, so each fast-mode figure is the best of --repeat runs (the faithful mode runs once).
+--ann adds the ANN trackers (sctn_ann: SCTN's ANN twin, per candidate; siamfc: per frame) on one thread,
+timed the same way through the benchmark interface (init excluded); --ann-only runs only them.
 """
 
 from __future__ import annotations
@@ -98,6 +100,37 @@ def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: 
             "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
 
 
+def time_ann_trackers(path: Path, segments: int, repeat: int, twin_checkpoint: str | None = None,
+                      siamfc_checkpoint: str | None = None) -> list[dict]:
+    """Segments/s of sctn_ann and siamfc on one thread (best of `repeat` runs; init, i.e. fine-tuning, excluded)."""
+    from benchmarks.trackers import get_tracker
+    from dvsot.boxes import iou_xywh
+    from dvsot.dataset import Dataset
+
+    torch.set_num_threads(1)
+    with Dataset(path) as ds:
+        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
+        s0, wh = ds.segment(first), (ds.width, ds.height)
+        segs = list(ds.segments(first + 1, first + 1 + segments))
+    runs = []
+    for name, ckpt in (("sctn_ann", twin_checkpoint), ("siamfc", siamfc_checkpoint)):
+        best = None
+        for _ in range(repeat):
+            tracker = get_tracker(name, checkpoint=ckpt, **({"energy_every": 0} if name == "sctn_ann" else {}))
+            tracker.init(s0, s0.box.copy(), *wh)
+            start, cpu = time.perf_counter(), time.process_time()
+            ious = [float(iou_xywh(tracker.update(s), s.box)) for s in segs]
+            wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+            if best is None or wall < best[0]:
+                best = (wall, cpu, ious)
+        wall, cpu, ious = best
+        runs.append({"tracker": name, "threads": 1, "segments": len(segs),
+                     "segments_per_s": round(len(segs) / wall, 2), "ms_per_segment": round(1000 * wall / len(segs), 2),
+                     "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
+                     "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)})
+    return runs
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
@@ -107,7 +140,20 @@ def main() -> None:
     parser.add_argument("--fast-only", action="store_true", help="skip the paper-faithful mode (~1 segment/s)")
     parser.add_argument("--sequences", nargs="+", help="per file: per-candidate dense vs event-driven, and fast mode")
     parser.add_argument("--drop-biases", action="store_true", help="evaluate the checkpoint without biases/tail steps")
+    parser.add_argument("--ann", action="store_true", help="also time sctn_ann and siamfc (one thread)")
+    parser.add_argument("--ann-only", action="store_true", help="time only sctn_ann and siamfc")
+    parser.add_argument("--twin-checkpoint", help="sctn_ann checkpoint (default: the shipped one)")
+    parser.add_argument("--siamfc-checkpoint", help="siamfc checkpoint (default: the shipped one)")
     args = parser.parse_args()
+    if args.ann_only and not args.sequences:
+        print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"), "ann_runs": _ann_runs(args)},
+                         indent=2))
+        return
+    if args.ann_only:  # per sequence
+        print(json.dumps({Path(f).stem: time_ann_trackers(Path(f), args.segments, args.repeat, args.twin_checkpoint,
+                                                          args.siamfc_checkpoint) for f in args.sequences}, indent=2))
+        return
+    ann = _ann_runs(args) if args.ann and not args.sequences else None
     from sctn.checkpoint import load_checkpoint
     from sctn.encoding import encode_boxes, encode_search
     from sctn.energy import count_search_ops, count_synaptic_ops
@@ -117,7 +163,11 @@ def main() -> None:
     if args.drop_biases:
         model = bias_free(model)
     if args.sequences:
-        print(json.dumps(per_sequence(model, [Path(p) for p in args.sequences], args.segments), indent=2))
+        result = per_sequence(model, [Path(p) for p in args.sequences], args.segments)
+        if args.ann:  # the ANN trackers on the same files, beside SCTN's rows
+            result["ann"] = {Path(f).stem: time_ann_trackers(Path(f), args.segments, 1, args.twin_checkpoint,
+                                                             args.siamfc_checkpoint) for f in args.sequences}
+        print(json.dumps(result, indent=2))
         return
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(args.data) if args.data else None
@@ -147,7 +197,8 @@ def main() -> None:
                       "network": {"channels": cfg.channels, "fc": cfg.fc}, "runs": runs,
                       "faithful_ac_ops_per_candidate": ops, "faithful_ac_ops_per_segment": ops * TRACK.n,
                       "fast_search_per_segment": {crop: {k: ops[k] for k in ("ac_ops", "mac_ops", "energy_pj")}
-                                                  for crop, ops in search.items()}},
+                                                  for crop, ops in search.items()},
+                      **({"ann_runs": ann} if args.ann else {})},
                      indent=2))
 
 
@@ -175,6 +226,18 @@ def per_sequence(model, paths: list[Path], segments: int) -> dict:
                      "event_driven_path": sparse["per_candidate"],
                      "mean_iou_without_reinit": sparse["mean_iou_without_reinit"]})
     return {"threads": 1, "exact_blocker": exact_blocker(model), "sequences": rows}
+
+
+def _ann_runs(args: argparse.Namespace) -> list[dict]:
+    """time_ann_trackers on --data (or the synthetic sequence)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(args.data) if args.data else None
+        if path is None:
+            sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+            from synthetic import moving_square_file
+
+            path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
+        return time_ann_trackers(path, args.segments, args.repeat, args.twin_checkpoint, args.siamfc_checkpoint)
 
 
 if __name__ == "__main__":
