@@ -1,8 +1,8 @@
 """SCTN's ANN twin (paper Fig. 8B): SCTN's layers with ReLU on one frame per candidate, trained and tracked as SCTN.
 
-Layers: SCTN's own (sctn/network.py NetworkConfig: the same widths, kernels and strides), each a
-convolution or fully connected layer followed by ReLU instead of C-LIF neurons; the two output units
-(0 = background, 1 = target) have no activation. Input: a candidate's canvas from sctn/encoding.py
+Layers: SCTN's own (sctn/network.py NetworkConfig: the same widths, kernels and strides, and SCTN's
+bias setting: none in the paper preset), each a convolution or fully connected layer followed by ReLU
+instead of C-LIF neurons; the two output units (0 = background, 1 = target) have no activation. Input: a candidate's canvas from sctn/encoding.py
 (the events inside the box, 107 x 107), in one of two forms (`TwinConfig.input`):
 
 - "bins" (default): the ten 1-ms steps x 2 polarities as 20 input channels (channel = 2 step + polarity).
@@ -58,13 +58,14 @@ class SCTNTwin(nn.Module):
         super().__init__()
         self.cfg = cfg = cfg or TwinConfig()
         chans = (cfg.in_channels(),) + tuple(cfg.channels)
-        self.convs = nn.ModuleList(nn.Conv2d(chans[i], chans[i + 1], cfg.kernels[i], cfg.strides[i])
+        self.convs = nn.ModuleList(nn.Conv2d(chans[i], chans[i + 1], cfg.kernels[i], cfg.strides[i], bias=cfg.bias)
                                    for i in range(3))
         widths = (cfg.channels[-1] * cfg.conv_sizes()[-1] ** 2,) + tuple(cfg.fc) + (2,)
-        self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1]) for i in range(3))
+        self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1], bias=cfg.bias) for i in range(3))
         for layer in list(self.convs) + list(self.fcs):  # He init for ReLU
             nn.init.kaiming_uniform_(layer.weight, a=0.0)
-            nn.init.zeros_(layer.bias)
+            if layer.bias is not None:
+                nn.init.zeros_(layer.bias)
 
     def frame(self, x: torch.Tensor) -> torch.Tensor:
         """SCTN's input spikes (B, T, 2, H, W) as the twin's frame (B, C, H, W)."""
@@ -111,7 +112,7 @@ class SCTNTwin(nn.Module):
             cell = torch.from_numpy((b * cells + v // k) * cells + u // k)
             col = torch.from_numpy((ch * k + v % k) * k + u % k)
             h = torch.zeros(n * cells * cells, conv1.out_channels).index_add_(0, cell, columns[col])
-            h = F.relu(h + conv1.bias).view(n, cells, cells, -1).permute(0, 3, 1, 2)
+            h = F.relu(h if conv1.bias is None else h + conv1.bias).view(n, cells, cells, -1).permute(0, 3, 1, 2)
             for conv in self.convs[1:]:
                 h = F.relu(conv(h))
             h = h.flatten(1)

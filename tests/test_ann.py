@@ -65,7 +65,7 @@ def test_twin_scores_from_the_events_equal_the_dense_evaluation(form, tmp_path):
     b, step, pol, v, u = canvas_pixels(seg.events, seg.t0_us, boxes)
     assert len(b) == int(x.sum()) and torch.all(x[b, step, pol, v, u] == 1)
     torch.manual_seed(1)
-    twin = SCTNTwin(TwinConfig(input=form)).eval()
+    twin = SCTNTwin(TwinConfig(input=form, bias=True)).eval()  # biases too (the paper preset has none)
     for layer in list(twin.convs) + list(twin.fcs):
         torch.nn.init.uniform_(layer.bias, -0.1, 0.1)
     with torch.no_grad():
@@ -220,9 +220,9 @@ def test_bench_refuses_a_checkpoint_of_another_model(twin_run, tmp_path, capsys)
     model, _, test_file, _ = twin_run
     twin = save_checkpoint(tmp_path / "twin.pt", model, {}, kind="sctn_ann")
     sctn = save_checkpoint(tmp_path / "sctn.pt", SCTN(NetworkConfig(channels=(2, 2, 2), fc=(4, 4))), {})
-    cases = [(["--tracker", "siamfc", "--checkpoint", str(sctn)], f"{sctn}: holds a sctn model, not a siamfc one"),
-             (["--tracker", "sctn", "--checkpoint", str(twin)], f"{twin}: holds a sctn_ann model, not an SCTN one"),
-             (["--tracker", "sctn_ann", "--option", f"sctn_ann.checkpoint={sctn}"], f"{sctn}: holds a sctn model"),
+    cases = [(["--tracker", "siamfc", "--checkpoint", str(sctn)], "sctn.pt: holds a sctn model, not a siamfc one"),
+             (["--tracker", "sctn", "--checkpoint", str(twin)], "twin.pt: holds a sctn_ann model, not an SCTN one"),
+             (["--tracker", "sctn_ann", "--option", f"sctn_ann.checkpoint={sctn}"], "sctn.pt: holds a sctn model"),
              (["--tracker", "sctn", "--tracker", "siamfc", "--checkpoint", str(sctn)], "sctn, siamfc all take a")]
     for argv, words in cases:
         out = tmp_path / "out"

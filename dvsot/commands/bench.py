@@ -351,8 +351,10 @@ def plan(args: argparse.Namespace) -> Plan:
     check_outputs(out_dir, _output_names(args, energy), files)
     for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
-    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn or energy else None
+    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, args.option)
+    if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
+        model = load_sctn_checkpoint(None)
     ann_models, notes = energy_ann_models(trackers, options) if energy else ({}, ())
     tasks = [(t, str(f)) for t in trackers for f in files]
     jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
