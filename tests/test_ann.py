@@ -180,6 +180,12 @@ def test_siamfc_macs_by_hand():
     assert m["by_layer"]["functional"] == 3 * 17 * 17 * 32 * 7 * 7  # the cross-correlation
     assert m["postprocess_mac_ops"] == 3 * 272 * 272 * 16 + 272 * 272
     assert m["mac_ops"] == m["network_mac_ops"] + m["postprocess_mac_ops"]
+    from benchmarks.energy_table import ann_rows
+
+    rows = ann_rows(256, twin=SCTNTwin(), siamfc=SiamFC())
+    siam, twin = rows["SiamFC (siamfc), 3 scales"], rows["SCTN's ANN twin (sctn_ann, input bins)"]
+    assert siam["mac_ops"] == m["mac_ops"] and siam["energy_pj"] == pytest.approx(4.6 * m["mac_ops"])
+    assert twin["mac_ops"] == 256 * twin_macs(SCTNTwin())["mac_ops"] and twin["ac_ops"] == 0
 
 
 def test_siamfc_tracker_moves_to_the_response_peak(tmp_path, monkeypatch):
