@@ -180,14 +180,7 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     rows3 = np.empty((max(n * total, MIN_ROWS), c3 * sizes[3] ** 2), np.float32)  # conv3's rows that spike
     row_of = np.full(n * total, -1, np.int64)  # (candidate, step) -> its row of rows3
     counts = np.zeros((n, 4, 2), np.float64)  # per layer input .. conv3: spikes, ACs
-    fans = [np.ascontiguousarray(conv_fanout(model.convs[k], (sizes[k], sizes[k])).numpy().reshape(-1), np.float64)
-            for k in range(3)]
-    # (kernel row, column, input channel) x output channel: the order torch's convolution sums a window in
-    weights = [np.ascontiguousarray(c.weight.detach().permute(2, 3, 1, 0).reshape(-1).numpy(), np.float32)
-               for c in model.convs]
-    # d_m, d_s, V0 per neuron of a layer's cells side by side (cell-major, channel-minor)
-    consts = [np.ascontiguousarray(np.tile(np.stack(model.neurons[k]._inference_constants()), (1, sizes[k + 1] ** 2)))
-              for k in range(3)]
+    weights, consts, fans = _kernel_arrays(model)
     used = conv_layers(ex, ey, ep, es, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
                         *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *blocks[1:], *consts,
                         np.float32(model.neurons[0].theta), total, record, *fans, BITS, NBITS, rows3, row_of,
@@ -214,6 +207,28 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
         conv3[torch.from_numpy(np.flatnonzero(row_of >= 0))] = torch.from_numpy(rows3[row_of[row_of >= 0]])
     maps = {"conv3": conv3.view(n, total, -1).transpose(0, 1), "fc1": fc_spikes[0], "fc2": fc_spikes[1], "output": out}
     return volts, {"spikes": spikes, "ac_ops": ops, "maps": maps}
+
+
+def _kernel_arrays(model: SCTN) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """The convolutions' weights, neuron constants and fan-outs as conv_layers reads them, cached on the model until
+    a parameter changes (fine-tuning updates them in place)."""
+    params = list(model.convs.parameters()) + list(model.neurons[:3].parameters())
+    key = tuple((p.data_ptr(), p._version) for p in params)
+    cached = getattr(model, "_sparse_arrays", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    sizes = [model.cfg.input_size] + model.cfg.conv_sizes()
+    with torch.no_grad():
+        # (kernel row, column, input channel) x output channel: the order torch's convolution sums a window in
+        weights = [np.ascontiguousarray(c.weight.detach().permute(2, 3, 1, 0).reshape(-1).numpy(), np.float32)
+                   for c in model.convs]
+        # d_m, d_s, V0 per neuron of a layer's cells side by side (cell-major, channel-minor)
+        consts = [np.ascontiguousarray(np.tile(np.stack(model.neurons[k]._inference_constants()),
+                                               (1, sizes[k + 1] ** 2))) for k in range(3)]
+        fans = [np.ascontiguousarray(conv_fanout(model.convs[k], (sizes[k], sizes[k])).numpy().reshape(-1), np.float64)
+                for k in range(3)]
+    model._sparse_arrays = (key, (weights, consts, fans))
+    return weights, consts, fans
 
 
 def _fc_layers(model: SCTN, rows3: np.ndarray, row_of: np.ndarray, used: int, total: int) -> list[torch.Tensor]:

@@ -107,6 +107,18 @@ def test_no_events_no_boxes_and_an_offset_segment():
     _check_equal(net, shifted, boxes, t0_us=123_456 + 2_500)
 
 
+def test_weights_changed_in_place_are_used():
+    net = _net(19, tail_steps=0)
+    events, boxes = _events(20), _boxes(21, n=16)
+    before = candidate_voltages(net, events, 0, boxes)
+    with torch.no_grad():  # as fine-tuning changes them
+        net.convs[2].weight.mul_(1.3)
+        net.neurons[1].p_m.add_(0.5)
+    after = candidate_voltages(net, events, 0, boxes)
+    assert not torch.equal(before, after)
+    assert torch.equal(after, dense_candidate_voltages(net, events, 0, boxes))
+
+
 def test_small_batches_are_summed_as_the_dense_path_sums_them():
     # one candidate (10 rows: MKL's small-batch path) and 65 (the dense path's last batch holds one)
     net = _net(11, tail_steps=0)
