@@ -229,9 +229,12 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
                 fx, fy = ex[e], ey[e]
                 if not (fx >= x0 and fx < x1 and fy >= y0 and fy < y1):
                     continue
-                px = int(np.floor((fx - cx) * sc + half))
-                py = int(np.floor((fy - cy) * sc + half))
-                if px < 0 or px >= size or py < 0 or py >= size:
+                u = (fx - cx) * sc + half
+                v = (fy - cy) * sc + half
+                if u < 0 or v < 0:  # off the canvas; for u, v >= 0 truncation is floor (and needs no libm call)
+                    continue
+                px, py = int(u), int(v)
+                if px >= size or py >= size:
                     continue
                 if px < cover and py < cover:
                     cell = (py // k1) * s1 + px // k1
