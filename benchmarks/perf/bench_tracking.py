@@ -224,7 +224,8 @@ def per_sequence(model, paths: list[Path], segments: int) -> dict:
                      "fast_bilinear_segments_per_s": fast["segments_per_s"],
                      "same_boxes": bool(np.array_equal(np.array(dense_boxes), np.array(sparse_boxes))),
                      "event_driven_path": sparse["per_candidate"],
-                     "mean_iou_without_reinit": sparse["mean_iou_without_reinit"]})
+                     "mean_iou_without_reinit": sparse["mean_iou_without_reinit"],
+                     "per_candidate_ac_ops_per_segment": segment_ops(model, path)})
     return {"threads": 1, "exact_blocker": exact_blocker(model), "sequences": rows}
 
 
@@ -238,6 +239,27 @@ def _ann_runs(args: argparse.Namespace) -> list[dict]:
 
             path = moving_square_file(Path(tmp) / "syn.h5", duration_ms=10 * (args.segments + 2), seed=1)
         return time_ann_trackers(path, args.segments, args.repeat, args.twin_checkpoint, args.siamfc_checkpoint)
+
+
+def segment_ops(model, path: Path, segments: int = 8) -> float | None:
+    """Mean ACs per segment of the paper's evaluation (256 gaussian candidates around the true box, each on its own
+    masked canvas), over `segments` labelled segments spread over the file; None if the model is not exact there."""
+    from dvsot.dataset import Dataset
+    from sctn.samples import TRACK, propose
+    from sctn.sparse_eval import candidate_record, exact_blocker
+
+    if exact_blocker(model) is not None:
+        return None
+    totals = []
+    with Dataset(path) as ds:
+        labelled = np.flatnonzero(np.isfinite(ds.segment_boxes()).all(axis=1))
+        for i in labelled[np.linspace(0, len(labelled) - 1, segments).astype(int)]:
+            seg = ds.segment(int(i))
+            boxes = propose(np.random.default_rng(int(i)), seg.box.astype(np.float64), TRACK.n, "gaussian",
+                            TRACK.trans, TRACK.scale, (ds.width, ds.height))
+            _, rec = candidate_record(model, seg.events, seg.t0_us, boxes)
+            totals.append(sum(float(ops.sum()) for ops in rec["ac_ops"].values()))
+    return float(np.mean(totals))
 
 
 if __name__ == "__main__":
