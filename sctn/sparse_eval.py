@@ -14,12 +14,14 @@ never receives current stays at V = 0 and never fires, so only what events reach
   which conv3 fired (a silent row's current is 0).
 
 Outputs equal the dense path's bit for bit, not just to rounding: each current is summed in the
-order torch's CPU convolution sums it (kernel row, kernel column, input channel; found by
-experiment against torch 2.13's oneDNN and held by the tests), the neurons repeat
+order torch's CPU convolution sums it (oneDNN: by blocks of input channels, 16 with AVX-512 and 8
+with AVX2, then kernel row, column, channel; summation_blocks finds the block on this machine by
+reproducing a convolution of the dense path's shape), the neurons repeat
 sctn.neurons._clif_steps's arithmetic, and the fully connected layers are torch's (a row's result
-does not depend on which other rows are in the batch). A model for which this cannot hold (a
-nonzero bias, an overlapping first kernel, more than 32 channels) is refused by `exact_blocker`'s
-reason; SCTNTracker then runs the dense path.
+does not depend on the other rows of a batch of 16 or more; fewer are summed as the dense path's
+own batch). A model for which this cannot hold (a nonzero bias, an overlapping first kernel, more
+than 32 channels, a summation order not reproduced here) is refused by `exact_blocker`'s reason;
+SCTNTracker then runs the dense path.
 """
 
 from __future__ import annotations
