@@ -28,7 +28,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "fast_nearest": ({}, {}, {"fast": True, "crop": "nearest", "finetune_search_iters": 0}),
     "fast_bilinear_search_tuned": ({}, {}, {"fast": True, "crop": "bilinear", "finetune_search_iters": 10}),
     "ops_penalty": ({"ops_penalty": 0.05}, {}, {}),
-    "no_calibration": ({"calibrate": False}, {}, {}),
+    "calibration": ({"calibrate": True}, {}, {}),
     "squared_error": ({"squared_error": True}, {}, {}),
     "background_term": ({"background_term": True}, {}, {}),
     "tail_steps": ({}, {"tail_steps": 2}, {}),

@@ -46,7 +46,7 @@ class TrainConfig:
     ops_penalty: float = 0.0  # loss weight per million synaptic operations (ACs) per sample; 0 = off
     squared_error: bool = False  # deviation: square each sample's eq.-5 error (sctn/loss.py)
     background_term: bool = False  # deviation: add the mirrored background-neuron error (sctn/loss.py)
-    calibrate: bool = True  # data-driven weight scale at initialisation (SCTN.calibrate); see docs/sctn.md
+    calibrate: bool = False  # deviation: data-driven weight scale at initialisation (SCTN.calibrate), an ablation row
     network: NetworkConfig = field(default_factory=NetworkConfig)
 
     def __post_init__(self) -> None:
