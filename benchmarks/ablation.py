@@ -147,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--candidates", type=int, default=256)
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
+    p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
     p.add_argument("--jobs", type=int, default=1, help="(row, seed) runs in parallel processes")
     p.add_argument("--out", required=True, help="directory for checkpoints and runs.jsonl (reused by a rerun)")
     a = p.parse_args(argv)
@@ -159,6 +160,8 @@ def main(argv: list[str] | None = None) -> int:
     have = {(r["row"], r["seed"]) for r in done}
     seeds = range(a.first_seed, a.first_seed + a.seeds)
     todo = [(row, s) for row in a.rows for s in seeds if (row, s) not in have]
+    if a.seed_major:  # every row's first seeds before any row's later ones: a cut-short run still covers all rows
+        todo.sort(key=lambda rs: rs[1])
     # rows that train first; tracker-only rows (which reuse those networks) once they exist
     phases = [[rs for rs in todo if training_key(rs[0]) == rs[0]], [rs for rs in todo if training_key(rs[0]) != rs[0]]]
     with tempfile.TemporaryDirectory() as tmp:

@@ -433,3 +433,41 @@ def test_candidates_are_fixed_per_location_whatever_came_before():
     np.testing.assert_allclose(again[:, 2:], first[:, 2:], rtol=0.01)
     tracker.box = np.array([101.0, 80.0, 40.0, 30.0])  # another location: other draws
     assert not np.allclose(tracker.candidates()[:, 2:], first[:, 2:], rtol=0.01)
+
+
+def test_per_candidate_energy_counts_every_candidates_own_spikes_and_biases_apart():
+    from sctn.energy import bias_additions, candidate_ops
+
+    torch.manual_seed(1)
+    rng = np.random.default_rng(1)
+    net = SCTN()
+    with torch.no_grad():
+        for layer in list(net.convs) + list(net.fcs):
+            layer.weight.mul_(6.0)
+    n = 3000
+    ev = EventBatch(rng.integers(60, 140, n).astype(np.uint16), rng.integers(40, 120, n).astype(np.uint16),
+                    np.sort(rng.integers(0, 10_000, n)).astype(np.int64), rng.integers(0, 2, n).astype(np.uint8))
+    boxes = np.array([[70.0, 50, 50, 40], [90, 60, 30, 30], [60, 40, 80, 80], [300, 200, 20, 20]])
+    dense = sum(count_synaptic_ops(net, encode_boxes(ev, 0, b[None]))["ac_ops_per_sample"] for b in boxes)
+    assert dense > 0 and candidate_ops(net, ev, 0, boxes) == pytest.approx(dense, rel=1e-6)
+    assert bias_additions(net) == 0.0
+    biased = SCTN(NetworkConfig(bias=True, tail_steps=2))
+    per_step = 8 * 26 * 26 + 16 * 12 * 12 + 16 * 10 * 10 + 64 + 32 + 2
+    assert bias_additions(biased) == per_step * 12
+
+
+def test_shipped_checkpoint_is_the_paper_preset_and_silent_on_an_empty_input():
+    import warnings
+
+    from sctn.checkpoint import load_checkpoint
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no legacy-layout note
+        model, meta = load_checkpoint(None)
+    assert model.cfg.steps == 10 and model.cfg.tail_steps == 0 and not model.cfg.bias
+    cfg = meta["train_config"]
+    assert cfg["loss"] == "exp" and not cfg["squared_error"] and not cfg["background_term"]
+    assert cfg["ops_penalty"] == 0 and not cfg["calibrate"]
+    with torch.no_grad():
+        volts, spikes = model.forward_record(torch.zeros(2, 10, 2, 107, 107))
+    assert [float(s.sum()) for s in spikes] == [0.0] * 7 and float(volts.abs().max()) == 0.0

@@ -77,9 +77,10 @@ class SCTNBenchTracker(Tracker):
         return box
 
     def _count(self, segment: Segment, box: np.ndarray) -> dict:
-        """Operations of the segment just tracked: the search actually run (fast) or per-candidate evaluations."""
-        from sctn.encoding import encode_boxes, encode_search
-        from sctn.energy import E_AC_PJ, count_search_ops, count_synaptic_ops
+        """Operations of the segment just tracked: the search actually run (fast), or every candidate's own evaluation
+        (spikes x fan-out, counted from each of the N candidates' spikes; bias additions apart)."""
+        from sctn.encoding import encode_search
+        from sctn.energy import E_AC_PJ, bias_additions, candidate_ops, count_search_ops
 
         model, cfg = self.tracker.model, self.tracker.model.cfg
         candidates, ref_box = self.tracker.last_search
@@ -88,11 +89,10 @@ class SCTNBenchTracker(Tracker):
                                    cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
             ops = count_search_ops(model, *inputs, crop=self.tracker.crop)
             return {"ac_ops": ops["ac_ops"], "mac_ops": ops["mac_ops"], "energy_pj": ops["energy_pj"]}
-        x = encode_boxes(segment.events, segment.t0_us, box[None], cfg.input_size, cfg.steps, cfg.step_us)
-        ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
-        # one network evaluation per candidate; the tracked box's input stands for each of them
-        total = ops * self.tracker.n_candidates
-        return {"ac_ops_per_candidate": ops, "ac_ops": total, "mac_ops": 0.0, "energy_pj": total * E_AC_PJ}
+        ops = candidate_ops(model, segment.events, segment.t0_us, candidates)
+        bias = bias_additions(model) * len(candidates)  # 0 in the paper preset (no biases)
+        return {"ac_ops_per_candidate": ops / len(candidates), "ac_ops": ops, "bias_ac_ops": bias, "mac_ops": 0.0,
+                "energy_pj": (ops + bias) * E_AC_PJ}
 
     def energy_per_segment(self) -> dict | None:
         """AC operations and pJ of the last counted segment (counted now if the last update was due)."""
