@@ -29,6 +29,8 @@ def test_compare_flags_changes_beyond_tolerance_in_either_direction():
 
 @pytest.mark.blender
 def test_ci_benchmark_meets_the_committed_reference(tmp_path):
+    # seed 0 is deterministic: held to the floor tolerance, in both directions (the seed spread, stored beside
+    # it, is what `python -m benchmarks.regression` reports a change against)
     ref = json.loads(REFERENCE.read_text())
     current = run_ci_benchmark(tmp_path)
-    assert compare(ref["metrics"], current, spread=ref["spread"]) == [], (current, ref)
+    assert compare(ref["metrics"], current) == [], (current, ref)
