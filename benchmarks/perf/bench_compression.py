@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from dvsot.dataset import COMPRESSIONS, Dataset, DatasetWriter
+from dvsot.errors import UserError
 
 
 def rewrite(src: Path, dst: Path, compression: str | None) -> None:
@@ -71,7 +72,11 @@ def main() -> None:
             for c in names:
                 dst = Path(tmp) / f"{c}-{src.name}"
                 start = time.perf_counter()
-                rewrite(src, dst, c)
+                try:
+                    rewrite(src, dst, c)
+                except UserError as exc:  # a damaged source: say so and go on with the others
+                    print(f"| {src.stem} | {n:,} | skipped: {exc} |||||", flush=True)
+                    break
                 wrote = time.perf_counter() - start
                 size = dst.stat().st_size
                 totals[c] += size
