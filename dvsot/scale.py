@@ -71,12 +71,28 @@ def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
     return max(1, cores // max(1, host_workers.get(host, 1)))
 
 
+def _real_bpy_first() -> None:
+    """Drop Blender's script folders from sys.path before bpy is imported here.
+
+    A worker spawned by a process that had imported bpy inherits its sys.path, with bpy's script folders
+    in front; one holds a `bpy` package of Blender's scripts that hides the real module (ModuleNotFoundError:
+    _bpy). Importing bpy puts them back.
+    """
+    if "bpy" in sys.modules:
+        return
+    import site
+
+    roots = tuple(os.path.join(d, "bpy") + os.sep for d in site.getsitepackages() + [site.getusersitepackages()])
+    sys.path[:] = [p for p in sys.path if not p.startswith(roots)]
+
+
 def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> dict:
     """Render one scene into its dataset file (in a worker): its summary, or {"error": one line} on any failure."""
     t_task = time.perf_counter()
     worker = _worker_address()
     try:
         with _RENDER_LOCK:
+            _real_bpy_first()
             from dvsot.config import parse_scene
             from dvsot.generate import generate
 
@@ -215,9 +231,15 @@ class _client:
         from distributed import Client, LocalCluster
 
         if self.kind == "local":
-            self.cluster = LocalCluster(n_workers=self.arg, threads_per_worker=1, processes=True,
-                                        dashboard_address=None,
-                                        silence_logs=logging.CRITICAL)  # failures reach the manifest, one line each
+            try:
+                self.cluster = LocalCluster(n_workers=self.arg, threads_per_worker=1, processes=True,
+                                            dashboard_address=None,
+                                            silence_logs=logging.CRITICAL)  # failures reach the manifest, one line each
+            except (RuntimeError, OSError, TimeoutError) as exc:
+                from dvsot.errors import RunError
+
+                raise RunError(f"--scheduler local:{self.arg}: the worker processes did not start "
+                               f"({one_line(exc)})") from None
             self.client = Client(self.cluster)
         else:
             try:
@@ -271,6 +293,33 @@ def _run_dask(client, tasks, todo, manifest, retries, report) -> None:
                                   key=f"scene-{tasks[i].name}-{attempt + 1}", workers=others or None)
             pending[again.key] = (i, attempt + 1)
             done.add(again)
+
+
+def map_tasks(scheduler: str, fn: Callable, calls: list[tuple],
+              on_result: Callable[[int, Any], None] | None = None) -> list:
+    """fn(*call) for every call, one Dask task each (local:N or tcp://HOST:PORT); results in call order.
+
+    Results are taken as they finish (on_result(k, result) for each); a task that raised, or whose worker
+    died, is one RunError line and the rest are cancelled.
+    """
+    from distributed import as_completed
+
+    from dvsot.errors import RunError
+
+    kind, arg = parse_scheduler(scheduler)
+    results: list = [None] * len(calls)
+    with _client(kind, arg) as client:
+        futures = {client.submit(fn, *call, pure=False): k for k, call in enumerate(calls)}
+        for fut in as_completed(futures):
+            k = futures[fut]
+            try:
+                results[k] = fut.result()
+            except Exception as exc:  # a crash of the task itself, a dead worker, a lost connection
+                client.cancel(list(futures))
+                raise RunError(f"task {k + 1} of {len(calls)} failed on {scheduler}: {one_line(exc)}") from None
+            if on_result is not None:
+                on_result(k, results[k])
+    return results
 
 
 def summary_line(manifest: Manifest) -> str:

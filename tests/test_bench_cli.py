@@ -245,3 +245,19 @@ def test_option_values_read_as_yaml():
 
     opts = _options(["sctn.fast=False", "sctn.trans=1e-1", "rct.cluster_size=0.05", "sctn.crop=nearest"], ["sctn", "rct"])
     assert opts == {"sctn": {"fast": False, "trans": 0.1, "crop": "nearest"}, "rct": {"cluster_size": 0.05}}
+
+
+def test_bench_on_a_dask_local_cluster_gives_the_same_results(tmp_path):
+    from synthetic import moving_square_file
+
+    data = tmp_path / "data"
+    data.mkdir()
+    moving_square_file(data / "a.h5", split="test", seed=1)
+    moving_square_file(data / "b.h5", split="test", seed=2, velocity_px_s=(-80.0, 40.0), start=(100.0, 40.0))
+    res = {}
+    for how in (["--jobs", "1"], ["--scheduler", "local:1"]):
+        out = tmp_path / how[1].replace(":", "")
+        assert main(["bench", "--tracker", "rct", "--data", str(data), "--out", str(out), "--quiet", "--max-segments", "8", *how]) == 0
+        res[how[0]] = {s: {k: v[k] for k in ("A", "R", "segments")}
+                       for s, v in json.loads((out / "results.json").read_text())["rct"].items()}
+    assert res["--jobs"] == res["--scheduler"] and set(res["--jobs"]) >= {"a", "b"}

@@ -43,6 +43,8 @@ def cores():
 
 
 def test_local_cluster_records_a_failure_retried_elsewhere_and_resume_renders_only_what_is_missing(tmp_path, capsys):
+    import bpy  # noqa: F401  as after any render in this process: the workers inherit Blender's sys.path
+
     tpl = tmp_path / "tiny.yaml"
     tpl.write_text(TEMPLATE)
     out = tmp_path / "out"
@@ -127,8 +129,8 @@ def test_local_workers_die_with_a_killed_head(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     kids = []
     try:
-        for _ in range(600):  # until both workers are rendering (their temp files exist), at most 60 s
-            if len(list(out.glob(".tiny_*.h5.tmp~*"))) >= 2:  # dvsot.staging.temp_name
+        for _ in range(600):  # until a worker is rendering (its temp file exists), at most 60 s
+            if any(out.glob(".tiny_*.h5.tmp~*")):  # a worker is rendering (dvsot.staging.temp_name)
                 break
             assert head.poll() is None, "the run ended before it could be killed"
             psutil.Process(head.pid).children()  # the head is alive

@@ -54,6 +54,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
     p.add_argument("--out", default=None, help="directory for the tables (default runs/bench-<time>)")
     p.add_argument("--jobs", type=int, default=None, help="parallel processes (default: min(2, runs))")
+    p.add_argument("--scheduler", help="local:N (a Dask LocalCluster of N processes) or tcp://HOST:PORT: one task per "
+                                       "(tracker, sequence) run; the data files must be at the same paths on the workers")
     p.add_argument("--tracker-module", action="append", default=[], metavar="MODULE",
                    help="import this module first, so that the trackers it registers can be named")
     p.add_argument("--max-segments", type=int, default=None,
@@ -320,6 +322,10 @@ def plan(args: argparse.Namespace) -> Plan:
 
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.scheduler:
+        from dvsot.scale import parse_scheduler
+
+        parse_scheduler(args.scheduler)
     if args.max_segments is not None and args.max_segments < 1:
         raise UserError(f"--max-segments must be >= 1, got {args.max_segments}")
     for m in args.tracker_module:
@@ -371,7 +377,12 @@ def track(p: Plan, args: argparse.Namespace) -> list:
 
     results: list = [None] * len(p.tasks)
     bar = tqdm(total=len(p.tasks), unit="run", desc="bench", disable=args.quiet)
-    if p.jobs == 1:
+    if args.scheduler:  # one Dask task per run, on a LocalCluster or a running cluster (dvsot.scale)
+        from dvsot.scale import map_tasks
+
+        calls = [(t, f, args.tracker_module, args.max_segments, p.options.get(t), args.protocol) for t, f in p.tasks]
+        results = map_tasks(args.scheduler, _run_one, calls, lambda k, r: bar.update(1))
+    elif p.jobs == 1:
         for k, (t, f) in enumerate(p.tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
             results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t), args.protocol)
