@@ -5,6 +5,7 @@ import os
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import dask
@@ -98,6 +99,12 @@ def test_scheduler_and_worker_started_as_processes(tmp_path):
     procs = [subprocess.Popen([str(dask_cli), "scheduler", "--host", "127.0.0.1", "--port", str(port),
                                "--no-dashboard"], stdout=log, stderr=log)]
     try:
+        for _ in range(900):  # the scheduler's start takes seconds (minutes on a loaded machine)
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            assert procs[0].poll() is None, (tmp_path / "dask.log").read_text()
+            time.sleep(0.1)
         procs.append(subprocess.Popen([str(dask_cli), "worker", address, "--nthreads", "1", "--no-dashboard",
                                        "--host", "127.0.0.1"], stdout=log, stderr=log))
         assert main(["generate", str(tpl), "--variants", "1", "--out-dir", str(tmp_path / "o"),
@@ -134,7 +141,7 @@ def test_local_workers_die_with_a_killed_head(tmp_path):
                 break
             assert head.poll() is None, "the run ended before it could be killed"
             psutil.Process(head.pid).children()  # the head is alive
-            __import__("time").sleep(0.1)
+            time.sleep(0.1)
         kids = psutil.Process(head.pid).children(recursive=True)
         assert len(kids) >= 2
     finally:
