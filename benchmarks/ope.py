@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.protocol import SequenceResult
+from dvsot.names import markdown_cell  # sequence and tracker names are free text
 
 IOU_THRESHOLDS = np.linspace(0.0, 1.0, 21)
 PIXEL_THRESHOLDS = np.arange(0, 51, dtype=np.float64)
@@ -88,7 +89,7 @@ def format_ope(summary: dict) -> str:
     sequences: list[str] = []
     for per in summary.values():
         sequences.extend(s for s in per if s != ALL and s not in sequences)
-    head = "| tracker | " + " | ".join(sequences) + f" | {ALL} (AUC / P@{PRECISION_PX}) |"
+    head = "| tracker | " + " | ".join(map(markdown_cell, sequences)) + f" | {ALL} (AUC / P@{PRECISION_PX}) |"
     lines = [head, "|---" * (len(sequences) + 2) + "|"]
     for tracker, per in summary.items():
         cells = []
@@ -100,7 +101,7 @@ def format_ope(summary: dict) -> str:
                 cells.append("failed")
             else:
                 cells.append(f"{v['AUC']:.3f} / {v[f'P@{PRECISION_PX}']:.3f}")
-        lines.append(f"| {tracker} | " + " | ".join(cells) + " |")
+        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

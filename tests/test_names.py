@@ -46,6 +46,10 @@ def test_names_with_paths_pipes_and_newlines_stay_inside_out_and_tables(tmp_path
     assert len(md) == 3, md  # header, rule, one tracker
     cells = [len(line.replace("\\|", "").split("|")) for line in md]
     assert len(set(cells)) == 1 and cells[0] == len(names) + 6, md  # tracker, names, all, seg/s, init s + 2 ends
+    assert main(["bench", "--tracker", "rct", "--data", str(data), "--out", str(out / "ope"), "--jobs", "1",
+                 "--quiet", "--protocol", "ope"]) == 0
+    ope = (out / "ope" / "ope.md").read_text().splitlines()
+    assert len(ope) == 3 and len({len(line.replace("\\|", "").split("|")) for line in ope}) == 1, ope
     txt = (out / "table.txt").read_text().splitlines()
     assert len(txt) == 5 and len({line.replace("\\|", "").count("|") for line in txt if "|" in line}) == 1, txt
     tex = (out / "results.tex").read_text()
