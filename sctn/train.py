@@ -68,6 +68,9 @@ def _finite(v: float) -> bool:
     return isinstance(v, (int, float)) and math.isfinite(v)
 
 
+MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment
+
+
 def config_problem(cfg: TrainConfig) -> tuple[str, str] | None:
     """The first out-of-range field of cfg and what is wrong with it, or None; checked before any work."""
     for name in ("epochs", "batch_segments", "val_every"):
@@ -75,6 +78,8 @@ def config_problem(cfg: TrainConfig) -> tuple[str, str] | None:
             return name, f"must be >= 1, got {getattr(cfg, name)}"
     if cfg.segments_per_epoch is not None and cfg.segments_per_epoch < 1:
         return "segments_per_epoch", f"must be >= 1, got {cfg.segments_per_epoch}"
+    if cfg.batch_segments > MAX_BATCH_SEGMENTS:  # every segment's 60 samples are built at once
+        return "batch_segments", f"must be at most {MAX_BATCH_SEGMENTS} (the bound), got {cfg.batch_segments}"
     if cfg.val_segments < 0:
         return "val_segments", f"must be >= 0, got {cfg.val_segments}"
     if not (_finite(cfg.lr) and cfg.lr > 0):  # else Adam's ValueError on a NaN rate looks like a data problem

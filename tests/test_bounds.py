@@ -102,3 +102,15 @@ def test_fuzzed_files_give_one_line_never_a_traceback(tmp_path, capsys):
             assert str(path) in captured.err and captured.err.count("\n") == 1, captured.err
         path.unlink()
     assert outcomes[2] > 0, outcomes
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--batch-segments", "100000000"], ("--batch-segments", "at most 64 (the bound)")),
+    (["--channels", "8", "100000", "8"], ("--channels", "between 1 and 1024 (the bound)")),
+    (["--fc", "10000000", "32"], ("--fc", "between 1 and 1024 (the bound)")),
+])
+def test_train_flags_that_would_blow_up_are_refused_naming_the_bound(tmp_path, capsys, flags, words):
+    small_file(tmp_path / "d.h5")
+    refused(["train", "--data", str(tmp_path / "d.h5"), "--split", "any", "-o", str(tmp_path / "c.pt")] + flags,
+            capsys, *words)
+    assert not (tmp_path / "c.pt").exists()

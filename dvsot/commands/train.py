@@ -56,6 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true")
 
 
+MAX_WIDTH = 1024  # --channels and --fc: weights and activations grow with them (1024 x 107^2 x T: 0.5 GB a sample)
+
+
 def _network_config(args: argparse.Namespace):
     """The network's layer sizes from --channels / --fc (NetworkConfig's defaults otherwise); the twin's TwinConfig."""
     from dvsot.errors import UserError
@@ -69,8 +72,9 @@ def _network_config(args: argparse.Namespace):
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
         if sizes is not None:
-            if min(sizes) < 1:
-                raise UserError(f"--{name} sizes must be >= 1, got {' '.join(map(str, sizes))}")
+            if min(sizes) < 1 or max(sizes) > MAX_WIDTH:  # bounded: the weights are allocated from these
+                raise UserError(f"--{name} sizes must be between 1 and {MAX_WIDTH} (the bound), "
+                                f"got {' '.join(map(str, sizes))}")
             net[name] = tuple(sizes)
     if args.model == "sctn_ann":
         return TwinConfig(**net, input=args.input or "bins")
