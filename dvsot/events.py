@@ -226,6 +226,7 @@ class EventSimulator:
             raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
         t0, t1 = self._t_prev, t_us
         p = self.params
+        self._check_noise(t0, t1)  # before the kernel and any array: a refused interval costs nothing
         if p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0):
             self._set_thresholds(*self._draw_thresholds())
         from dvsot.event_kernel import interval_events  # numba: imported when the first events are due
@@ -252,6 +253,16 @@ class EventSimulator:
         else:
             self._last, self._last_is_ours = L1, False
 
+    def _check_noise(self, t0: int, t1: int) -> None:
+        """UserError if shot noise or leak would draw more than MAX_NOISE_EVENTS events in (t0, t1] (us)."""
+        for field in ("shot_noise_hz", "leak_hz"):
+            rate = getattr(self.params, field)
+            mean = rate * self.width * self.height * (t1 - t0) * 1e-6
+            if mean > MAX_NOISE_EVENTS:
+                raise UserError(f"{field} {rate:g} over {self.width}x{self.height} px gives {mean:.3g} noise events "
+                                f"between frames {(t1 - t0) / 1000:g} ms apart, more than the bound of "
+                                f"{MAX_NOISE_EVENTS:g}")
+
     def _noise(self, t0: int, t1: int) -> tuple[np.ndarray, ...]:
         """Shot-noise and leak events (pixel index, float us time, polarity) in (t0, t1]."""
         p, npix = self.params, self.width * self.height
@@ -260,13 +271,7 @@ class EventSimulator:
         for rate, on_only in ((p.shot_noise_hz, False), (p.leak_hz, True)):
             if rate <= 0:
                 continue
-            mean = rate * npix * seconds
-            if mean > MAX_NOISE_EVENTS:  # before numpy is asked for the arrays
-                field = "leak_hz" if on_only else "shot_noise_hz"
-                raise UserError(f"{field} {rate:g} over {self.width}x{self.height} px gives {mean:.3g} noise events "
-                                f"between frames {(t1 - t0) / 1000:g} ms apart, more than the bound of "
-                                f"{MAX_NOISE_EVENTS:g}")
-            k = int(rng.poisson(mean))
+            k = int(rng.poisson(rate * npix * seconds))
             pix = rng.integers(0, npix, k)
             times = t0 + (t1 - t0) * (1.0 - rng.random(k))  # in (t0, t1]
             pol = np.ones(k, bool) if on_only else rng.random(k) < 0.5
