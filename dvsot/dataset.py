@@ -130,6 +130,13 @@ def _interpolate_boxes(t_samples: np.ndarray, xywh: np.ndarray, t_query: np.ndar
     return interpolate_boxes(t_samples, xywh, t_query)
 
 
+def _readlink(path: str) -> str | None:
+    try:
+        return os.readlink(path)
+    except OSError:
+        return None
+
+
 class DatasetWriter:
     """Streams events and boxes into a new dataset file; renames it into place only on success."""
 
@@ -151,10 +158,9 @@ class DatasetWriter:
         # other outputs of the enclosing run_outputs() block
         self._own_run = None if current_run() is not None else RunOutputs()
         self._run = current_run() or self._own_run
-        self.tmp_path = self._run.stage(self.path, ready=False)
-        self._file = h5py.File(self.tmp_path, "w")
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(map(str, COMPRESSIONS))}, got {compression!r}")
+        self.tmp_path = self._run.stage(self.path, ready=False)
         self._compression = compression
         self._filter = COMPRESSIONS[compression]
         self.t_offset_us = int(t_offset_us)  # the recording's clock minus /events/t, microseconds
@@ -163,10 +169,17 @@ class DatasetWriter:
         self.annotated = bool(annotated)
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
-        ev = self._file.create_group("events")
-        for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
-            ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
-                              fletcher32=self._checksum, **self._filter)
+        self._file = None
+        try:
+            self._file = h5py.File(self.tmp_path, "w")
+            ev = self._file.create_group("events")
+            for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
+                ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
+                                  fletcher32=self._checksum, **self._filter)
+        except BaseException as exc:
+            self._io = None
+            self.__exit__(type(exc), exc, None)  # the temp removed; a full disk is one RunError line
+            raise
         self._has_signal: bool | None = None
         self._buffer: list[EventBatch] = []
         self._buffered = 0
@@ -257,9 +270,28 @@ class DatasetWriter:
     def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
         """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close)."""
         ev = self._file["events"]
-        for name, values in columns.items():
-            ev[name].resize((n1,))
-            ev[name][n0:n1] = values
+        try:
+            for name, values in columns.items():
+                ds = ev[name]
+                ds.resize((n1,))
+                ds[n0:n1] = values
+                ds.flush()  # a write error (a full disk) raises here, not later in a destructor that cannot
+        except BaseException:
+            self._discard_writes()
+            raise
+
+    def _discard_writes(self) -> None:
+        """Send the doomed file's further writes to /dev/null, so HDF5's flushes at close neither fail nor crash."""
+        # the descriptor found through /proc (Linux): HDF5's own accessor crashes on a file whose flush failed
+        try:
+            target = os.path.realpath(self.tmp_path)
+            fds = [int(fd) for fd in os.listdir("/proc/self/fd") if _readlink(f"/proc/self/fd/{fd}") == target]
+            for fd in fds:
+                null = os.open(os.devnull, os.O_RDWR)
+                os.dup2(null, fd)
+                os.close(null)
+        except OSError:
+            pass
 
     def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None) -> None:
         """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal."""
@@ -341,6 +373,7 @@ class DatasetWriter:
             # over the values as a reader decodes them, so both sides hash the same thing
             stored = {k: _decode_attr(v) for k, v in f.attrs.items()}
             _write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
+            f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
             f.close()
             _read_back(self.tmp_path, self.path)
             self._run.done(self.path)
@@ -360,6 +393,7 @@ class DatasetWriter:
         self._closed = True
         if self._io is not None:
             self._io.stop()  # the chunk being written finishes; the file is closed after it
+        self._discard_writes()  # on a full disk HDF5's flushes at close fail again and again, then crash at exit
         try:
             self._file.close()
         except Exception:

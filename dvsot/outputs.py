@@ -91,7 +91,7 @@ def disk_error(exc: BaseException) -> str | None:
     while exc is not None and id(exc) not in seen:
         seen.add(id(exc))
         if isinstance(exc, OSError) and exc.errno in _DISK_ERRNOS:
-            return exc.strerror or os.strerror(exc.errno)
+            return os.strerror(exc.errno)
         text = str(exc)
         for words in _DISK_WORDS:
             if words in text:
