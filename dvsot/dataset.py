@@ -281,15 +281,16 @@ class DatasetWriter:
             raise
 
     def _discard_writes(self) -> None:
-        """Send the doomed file's further writes to /dev/null, so HDF5's flushes at close neither fail nor crash."""
+        """Send the doomed file's further writes to memory, so HDF5's flushes at close neither fail nor crash."""
         # the descriptor found through /proc (Linux): HDF5's own accessor crashes on a file whose flush failed
         try:
             target = os.path.realpath(self.tmp_path)
             fds = [int(fd) for fd in os.listdir("/proc/self/fd") if _readlink(f"/proc/self/fd/{fd}") == target]
             for fd in fds:
-                null = os.open(os.devnull, os.O_RDWR)
-                os.dup2(null, fd)
-                os.close(null)
+                # an in-memory file takes HDF5's writes and its truncation to the file's end (sparse, no memory)
+                sink = os.memfd_create("dvsot-discarded") if hasattr(os, "memfd_create") else os.open(os.devnull, os.O_RDWR)
+                os.dup2(sink, fd)
+                os.close(sink)
         except OSError:
             pass
 
