@@ -103,7 +103,7 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary."""
     from tqdm import tqdm
 
-    from dvsot.blender import BlenderScene
+    from dvsot.blender import BlenderScene, blender_version
 
     start = time.perf_counter()
     # a long scene spends minutes here and in the scene build before its bar appears: say what is going on
@@ -115,13 +115,11 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
     W, H = cfg.sensor.width, cfg.sensor.height
     params = cfg.event_params()
     sim = EventSimulator(W, H, params, cfg.derived_seed("events"))
-    import bpy
-
     attrs = {"name": cfg.name, "split": cfg.split, "scene_yaml": scene_text,
              "scene_resolved": json.loads(cfg.model_dump_json()), "simulator": params.model_dump(),
              "seed": cfg.seed, "event_seed": cfg.derived_seed("events"), "generator": "dvsot generate",
              "challenges": cfg.challenges,
-             "versions": {"dvsot": __version__, "blender": bpy.app.version_string, "numpy": np.__version__}}
+             "versions": {"dvsot": __version__, "blender": blender_version(), "numpy": np.__version__}}
     render_s = 0.0
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
     # Cycles swallows a KeyboardInterrupt raised inside its callbacks (and renders on), so SIGINT/SIGTERM

@@ -34,7 +34,7 @@ from sctn.encoding import encode_search
 from sctn.network import SCTN, check_crop
 from sctn.samples import TRACK, propose
 from sctn.sparse_eval import per_candidate_voltages
-from sctn.train import finetune
+from sctn.finetune import finetune
 
 
 def location_rng(seed: int, box_xywh: np.ndarray) -> np.random.Generator:

@@ -2,4 +2,11 @@
 
 from dvsot.blender.scene import BlenderScene
 
-__all__ = ["BlenderScene"]
+__all__ = ["BlenderScene", "blender_version"]
+
+
+def blender_version() -> str:
+    """The running Blender's version string (bpy.app.version_string), for a dataset file's provenance."""
+    import bpy
+
+    return bpy.app.version_string
