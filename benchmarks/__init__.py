@@ -1,1 +1,26 @@
-"""Benchmark suite: trackers behind one interface, the A/R/ARscore protocol, tables, performance scripts."""
+"""Benchmark suite: trackers behind one interface, the A/R/ARscore protocol, tables, performance scripts.
+
+Public names (each imported on first use): `benchmark` (trackers x dataset files -> `SequenceResult`s),
+`run_sequence`, the tracker registry (`get_tracker`, `register`, `available_trackers`, `Tracker`), the
+metrics (`scores`, `pooled`, `ar_score`, `Scores`) and `summarise` (results -> the tables' data).
+"""
+
+from dvsot.lazy import lazy_attributes
+
+_API = {
+    "benchmark": "benchmarks.runner",
+    "run_one": "benchmarks.runner",
+    "SequenceResult": "benchmarks.protocol",
+    "run_sequence": "benchmarks.protocol",
+    "get_tracker": "benchmarks.trackers",
+    "register": "benchmarks.trackers",
+    "available_trackers": "benchmarks.trackers",
+    "Tracker": "benchmarks.trackers.base",
+    "scores": "benchmarks.metrics",
+    "pooled": "benchmarks.metrics",
+    "ar_score": "benchmarks.metrics",
+    "Scores": "benchmarks.metrics",
+    "summarise": "benchmarks.tables",
+}
+__all__ = list(_API)
+__getattr__, __dir__ = lazy_attributes(__name__, _API)

@@ -1,12 +1,27 @@
-"""dvsot: synthesise event-camera (DVS) single-object-tracking datasets and benchmark trackers on them."""
+"""dvsot: synthesise event-camera (DVS) single-object-tracking datasets and benchmark trackers on them.
+
+The Python API (README, "Use it from Python"): `load_scene` -> `generate` renders a scene into a dataset
+file; `EventSimulator` + `simulate_frames` turn frames you have into one; `Dataset` reads it. Each name
+is imported on first use, so `import dvsot` stays light (no torch, no bpy).
+"""
+
+from dvsot.lazy import lazy_attributes
 
 __version__ = "0.1.0"
 
-
-def __getattr__(name: str):
-    """dvsot.simulate_frames (frames -> events -> dataset file), imported on first use: `import dvsot` stays light."""
-    if name == "simulate_frames":
-        from dvsot.simulation import simulate_frames
-
-        return simulate_frames
-    raise AttributeError(f"module 'dvsot' has no attribute {name!r}")
+_API = {
+    "load_scene": "dvsot.config",
+    "SceneConfig": "dvsot.config",
+    "generate": "dvsot.generate",
+    "simulate_frames": "dvsot.simulation",
+    "EventSimulator": "dvsot.events",
+    "EventParams": "dvsot.events",
+    "EventBatch": "dvsot.events",
+    "Dataset": "dvsot.dataset",
+    "DatasetWriter": "dvsot.dataset",
+    "find_datasets": "dvsot.dataset",
+    "UserError": "dvsot.errors",
+    "RunError": "dvsot.errors",
+}
+__all__ = ["__version__", *_API]
+__getattr__, __dir__ = lazy_attributes(__name__, _API)

@@ -17,6 +17,7 @@ from dvsot.config import SceneConfig
 from dvsot.dataset import DatasetWriter
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
+from dvsot.lazy import callable_module
 from dvsot.outputs import run_outputs
 from dvsot.sampling import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.shapes import mesh_for, sample_points
@@ -171,3 +172,6 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
             "s_per_frame_after_first": round((render_s - first_s) / (len(times) - 1), 4) if len(times) > 1 else None,
             "first_frame_s": round(first_s, 3), "frames_per_simulated_s": round(len(times) / cfg.duration_s, 1),
             "wall_s": round(wall, 2)}
+
+
+callable_module(__name__, "generate")  # dvsot.generate(...) is this module's generate (dvsot.lazy says why)

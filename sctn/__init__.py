@@ -1,1 +1,21 @@
-"""SCTN: the spiking convolutional tracking network (C-LIF neurons, STCA-style training, tracking, energy)."""
+"""SCTN: the spiking convolutional tracking network (C-LIF neurons, STCA-style training, tracking, energy).
+
+Public names (each imported on first use): the model `SCTN` and its `NetworkConfig`, the tracker
+`SCTNTracker`, training (`train`, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
+`save_checkpoint`).
+"""
+
+from dvsot.lazy import lazy_attributes
+
+_API = {
+    "SCTN": "sctn.network",
+    "NetworkConfig": "sctn.network",
+    "SCTNTracker": "sctn.tracker",
+    "train": "sctn.train",
+    "TrainConfig": "sctn.train",
+    "finetune": "sctn.finetune",
+    "load_checkpoint": "sctn.checkpoint",
+    "save_checkpoint": "sctn.checkpoint",
+}
+__all__ = list(_API)
+__getattr__, __dir__ = lazy_attributes(__name__, _API)

@@ -23,6 +23,7 @@ import torch
 
 from dvsot.dataset import Dataset
 from dvsot.events import EventBatch
+from dvsot.lazy import callable_module
 from sctn.encoding import encode_boxes
 from sctn.energy import layer_ops
 from sctn.finetune import finetune  # noqa: F401  (re-exported: callers import it from here)
@@ -246,3 +247,6 @@ def provenance(files: list[Path], cfg: TrainConfig, history: dict) -> dict:
             "history": {k: v for k, v in history.items() if k != "train_loss"},
             "train_loss_first_last": [history["train_loss"][0], history["train_loss"][-1]] if history["train_loss"] else None,
             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+
+
+callable_module(__name__, "train")  # sctn.train(...) is this module's train (dvsot.lazy says why)

@@ -92,34 +92,6 @@ class Plan:
     tasks: list[tuple[str, str]] = field(default_factory=list)
 
 
-def _run_one(tracker: str, path: str, modules: list[str], max_segments: int | None, options: dict | None = None,
-             protocol: str = "ar"):
-    """Worker: run one tracker on one file (in a fresh process when parallel)."""
-    from benchmarks.protocol import SequenceResult, one_line, run_sequence
-    from benchmarks.trackers import get_tracker, load_tracker_module
-    from dvsot.dataset import Dataset
-
-    for m in modules:
-        load_tracker_module(m)
-    with Dataset(path) as ds:
-        try:
-            instance = get_tracker(tracker, **(options or {}))
-        except Exception as exc:  # the options were built once up front, so this is a runtime failure
-            import numpy as np
-
-            n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
-            return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
-                                  error=one_line(exc))
-        if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
-            sys.modules["torch"].set_num_threads(1)
-        result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
-        if protocol == "ope":
-            from benchmarks.ope import add_centre_errors
-
-            add_centre_errors(result, ds.segment_boxes())
-        return result
-
-
 def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
     """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
     from dvsot.config import yaml_value
@@ -369,36 +341,10 @@ def plan(args: argparse.Namespace) -> Plan:
 
 def track(p: Plan, args: argparse.Namespace) -> list:
     """Run every task of the plan (in parallel processes when jobs > 1); results in task order."""
-    from concurrent.futures import as_completed
+    from benchmarks.runner import benchmark
 
-    from tqdm import tqdm
-
-    from dvsot.workers import WorkerPool, result
-
-    results: list = [None] * len(p.tasks)
-    bar = tqdm(total=len(p.tasks), unit="run", desc="bench", disable=args.quiet)
-    if args.scheduler:  # one Dask task per run, on a LocalCluster or a running cluster (dvsot.scale)
-        from dvsot.scale import map_tasks
-
-        calls = [(t, f, args.tracker_module, args.max_segments, p.options.get(t), args.protocol) for t, f in p.tasks]
-        results = map_tasks(args.scheduler, _run_one, calls, lambda k, r: bar.update(1))
-    elif p.jobs == 1:
-        for k, (t, f) in enumerate(p.tasks):
-            bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = _run_one(t, f, args.tracker_module, args.max_segments, p.options.get(t), args.protocol)
-            bar.update(1)
-    else:
-        # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well); workers die with
-        # this process, and on any exception here they are stopped at once (dvsot.workers)
-        with WorkerPool(p.jobs) as pool:
-            futures = {pool.submit(_run_one, t, f, args.tracker_module, args.max_segments, p.options.get(t),
-                                   args.protocol): k
-                       for k, (t, f) in enumerate(p.tasks)}
-            for fut in as_completed(futures):
-                results[futures[fut]] = result(fut)
-                bar.update(1)
-    bar.close()
-    return results
+    return benchmark(p.trackers, p.files, p.options, p.jobs, args.max_segments, args.protocol, args.tracker_module,
+                     progress=not args.quiet, scheduler=args.scheduler)
 
 
 def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
