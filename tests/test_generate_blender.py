@@ -187,7 +187,7 @@ def test_baked_background_renders_like_the_procedural_texture(tmp_path):
 
 
 def test_bake_auto_leaves_sharp_edged_textures_procedural():
-    from dvsot.blender.scene import _should_bake
+    from dvsot.blender.bake import should_bake as _should_bake
     from dvsot.config import Texture
 
     assert _should_bake(Texture(type="flower"), "auto") and _should_bake(Texture(type="noise"), "auto")
