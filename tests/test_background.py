@@ -100,7 +100,7 @@ def test_simulate_frames_writes_what_the_simulator_gives_and_a_failed_write_leav
     assert np.array_equal(got.t, np.concatenate([b.t for b in want]))
     assert np.array_equal(got.x, np.concatenate([b.x for b in want]))
 
-    monkeypatch.setattr("dvsot.dataset._EVENT_CHUNK", 256)  # several chunks, written by the writer thread
+    monkeypatch.setattr("dvsot.dataset.writer._EVENT_CHUNK", 256)  # several chunks, written by the writer thread
 
     def full_disk(self, n0, n1, columns):
         raise OSError(28, "No space left on device")

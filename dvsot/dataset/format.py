@@ -1,0 +1,135 @@
+"""The dvsot dataset file (HDF5, format version 2): its layout, constants and attribute encoding.
+
+The writer is dvsot.dataset.writer, the reader dvsot.dataset.reader, the reader's checks dvsot.dataset.validation.
+
+Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
+
+    /events/x, /events/y   u2  pixel
+    /events/t              i8  microseconds since the sequence start
+    /events/p              u1  1 = brighter, 0 = darker
+    /events/signal         u1  1 = signal, 0 = noise event (present when the generator flags them)
+    /events/ms_to_idx      u8  index of the first event with t >= ms * 1000, for ms = 0 .. duration_ms
+    /boxes/t               i8  microseconds, one row per rendered sample
+    /boxes/xywh            f4  (N, 4) amodal target box (target rendered alone); NaN = absent
+    /boxes/xywh_visible    f4  (N, 4) visible part of the target (occluders kept)
+    /segments/t            i8  (M,) end time of each segment, microseconds
+    /segments/xywh         f4  (M, 4) ground truth per segment, at the segment's end time
+    /segments/xywh_visible f4  (M, 4) visible-part ground truth per segment
+    /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
+    /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
+    /t_offset              i8  scalar, microseconds added to /events/t to get the recording's own clock
+                               (0 for synthetic data)
+
+Event columns are byte-shuffled and gzip (level 1) compressed, filters every HDF5 library has, so
+h5dump and readers outside h5py open them. Version 1 files (LZF, no root link, no /t_offset) still load, with offset 0.
+
+The writer appends events in chunks and computes `ms_to_idx` as it goes, so a sequence of hundreds
+of millions of events never sits in memory. It writes to a temporary name beside the target and
+renames on success, so an interrupted run leaves no file that looks complete. Every dataset carries
+HDF5's Fletcher-32 checksum, so flipped bits in a chunk fail the read instead of returning garbage.
+
+The reader checks the layout and attributes when it opens a file, and the invariants of every batch
+of events it loads (time order, time window, pixel range, 0/1 flags) on the data already in memory;
+`Dataset.chunks` streams and checks the whole file. Any violation is a one-line UserError naming the
+file and the dataset or attribute. Files written before checksums were added still load.
+
+Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.validate),
+and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
+`attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
+digest (no `attrs_sha256`) load without that check. Whole datasets read into memory are bounded in
+rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from dvsot.events import EventBatch
+
+FORMAT = "dvsot"
+FORMAT_VERSION = 2
+# name -> h5py filter options for event columns. gzip and shuffle are built into every HDF5 library; gzip 1
+# after the byte shuffle is ~0.4x LZF's size and as fast to read (benchmarks/perf/bench_compression.py)
+COMPRESSIONS: dict[str | None, dict[str, Any]] = {
+    "gzip": {"compression": "gzip", "compression_opts": 1, "shuffle": True},
+    "gzip-noshuffle": {"compression": "gzip", "compression_opts": 1},
+    "lzf": {"compression": "lzf"},  # version 1's choice: h5py-only, h5dump and hdf5plugin cannot read it
+    None: {},
+}
+# Datasets every file has.
+REQUIRED = ("events/x", "events/y", "events/t", "events/p", "events/ms_to_idx",
+            "boxes/t", "boxes/xywh", "boxes/xywh_visible", "segments/t", "segments/xywh")
+# Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).
+LAYOUT: dict[str, tuple[str, int]] = {
+    "events/x": ("ui", 1), "events/y": ("ui", 1), "events/t": ("ui", 1), "events/p": ("uib", 1),
+    "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
+    "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
+    "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
+    "segments/annotation": ("i", 1),
+}
+MAX_PIXELS = 1 << 16  # x and y are stored as u2
+# Datasets that must have as many rows as the first one of their group.
+SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal"),
+             ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
+             ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation"))
+
+
+@dataclass(frozen=True)
+class BoxTrack:
+    """The target's box at every rendered sample: t (microseconds), xywh and xywh_visible (pixels, NaN = absent)."""
+
+    t: np.ndarray
+    xywh: np.ndarray
+    xywh_visible: np.ndarray
+
+
+@dataclass(frozen=True)
+class Segment:
+    """The events of [t0_us, t1_us) and the ground-truth box (pixels, NaN if absent) at t1_us."""
+
+    index: int
+    t0_us: int
+    t1_us: int
+    events: EventBatch
+    box: np.ndarray
+    box_visible: np.ndarray | None = None
+
+
+def encode_attr(value: Any) -> Any:
+    """An HDF5-storable attribute value: containers and None become JSON text."""
+    if isinstance(value, (dict, list, tuple)) or value is None:
+        return json.dumps(value, sort_keys=True, default=str)
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def write_attr(attrs: h5py.AttributeManager, key: str, value: Any) -> None:
+    """Store an attribute; text as fixed-length UTF-8, whose bytes sit in the attribute itself: a damaged
+    variable-length string points into a heap, and HDF5 can crash the process following it."""
+    if isinstance(value, str):
+        data = value.encode("utf-8")
+        attrs.create(key, np.array(data, dtype=h5py.string_dtype("utf-8", max(1, len(data)))))
+    else:
+        attrs[key] = value
+
+
+def decode_attr(value: Any) -> Any:
+    """The Python value of an HDF5 attribute: JSON text of containers is parsed back."""
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    if isinstance(value, str) and (value.startswith(("{", "[")) or value == "null"):
+        try:
+            return json.loads(value)
+        except json.JSONDecodeError:
+            return value
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+

@@ -1,0 +1,277 @@
+"""The dataset file's lazy reader: events by time through ms_to_idx, fixed-length segments with their ground
+truth, boxes and attributes, every load checked (dvsot.dataset.validation); and finding the files of a split."""
+
+from __future__ import annotations
+
+import glob as globmod
+import os
+from pathlib import Path
+from typing import Any, Iterator
+
+import h5py
+import numpy as np
+
+from dvsot import validate
+from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
+from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
+                                      columns_problem, int_attr, ms_to_idx_problem, short, times_problem)
+from dvsot.errors import UserError
+from dvsot.events import EventBatch
+
+
+class Dataset:
+    """A dataset file opened lazily: events by time, fixed-length segments with ground truth, boxes, metadata."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        kind = validate.file_kind_problem(self.path)
+        if kind:
+            raise UserError(f"{self.path}: " + ("no such dataset file" if kind == "no such file" else
+                                                f"{kind}, not a dataset file"))
+        try:
+            self._file = h5py.File(self.path, "r")
+        except (OSError, RuntimeError) as exc:
+            raise UserError(f"{self.path}: not a readable HDF5 file ({short(exc)})") from None
+        try:
+            self._validate()
+        except UserError:
+            self._file.close()
+            raise
+        except Damaged as exc:
+            self._file.close()
+            raise UserError(f"{self.path}: damaged dvsot file ({exc})") from None
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py: RuntimeError for broken metadata
+            self._file.close()
+            raise UserError(f"{self.path}: damaged dvsot file ({short(exc)})") from None
+
+    def _validate(self) -> None:
+        f = self._file
+        if decode_attr(f.attrs.get("format", "")) != FORMAT:
+            raise UserError(f"{self.path}: not a dvsot dataset file (root attribute 'format' is not '{FORMAT}')")
+        version = int_attr({k: decode_attr(v) for k, v in f.attrs.items()}, "format_version", -(2**62))
+        if not 1 <= version <= FORMAT_VERSION:
+            raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
+        check_layout(f)
+        self.t_offset_us = check_root_links(f, version)
+        self.attrs: dict[str, Any] = {k: decode_attr(v) for k, v in f.attrs.items()}
+        self.width = int_attr(self.attrs, "width", 1, MAX_PIXELS)
+        self.height = int_attr(self.attrs, "height", 1, MAX_PIXELS)
+        if self.width * self.height > validate.MAX_SENSOR_PIXELS:
+            raise Damaged(f"root attributes 'width' x 'height' are {self.width}x{self.height}, more than the bound "
+                           f"of {validate.MAX_SENSOR_PIXELS} pixels")
+        self.segment_us = int_attr(self.attrs, "segment_us", 1)
+        self.duration_us = int_attr(self.attrs, "duration_us", 0)
+        self.format_version = version
+        self.name = str(self.attrs.get("name") or self.path.stem)
+        self.split = str(self.attrs.get("split") or "")
+        ev = f["events"]
+        self._has_signal = "signal" in ev
+        # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
+        # would decompress a whole 2 MB chunk for every query (10x slower segment reads)
+        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
+        self.num_events = int(ev["t"].shape[0])
+        if "num_events" in self.attrs and int_attr(self.attrs, "num_events", 0) != self.num_events:
+            raise Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
+                           f"but /events/t has {self.num_events} rows")
+        check_duration(self.duration_us, self.segment_us, ev["ms_to_idx"].shape[0], f["segments/xywh"].shape[0])
+        check_sizes(f)
+        self._ms_to_idx = self._load("events/ms_to_idx")
+        problem = ms_to_idx_problem(self._ms_to_idx, self.num_events)
+        if problem:
+            raise Damaged(problem)
+        self._seg_box = self._load("segments/xywh").astype(np.float32)
+        vis = self._load("segments/xywh_visible") if "segments/xywh_visible" in f else None
+        self._seg_vis = None if vis is None else vis.astype(np.float32)
+        self.num_segments = int(self._seg_box.shape[0])
+        # recordings: the /boxes row each segment is scored against (-1: none), dvsot.boxes.match_annotations
+        self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
+        n_boxes = f["boxes/t"].shape[0]
+        if self._seg_ann is not None and len(self._seg_ann) and not (
+                -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
+            raise Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")
+        for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
+            rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
+            problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
+            if problem:
+                raise Damaged(f"/{name} {problem}")
+        problem = validate.digest_problem(self.attrs)
+        if problem:
+            raise Damaged(problem)
+        self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
+                        "y": (self.height, f"expected 0 <= y < height {self.height}"),
+                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
+        if self.num_events:  # two chunk reads: in a sorted file the ends bound every timestamp
+            first = int(self._read("t", 0, 1)[0])
+            last = int(self._read("t", self.num_events - 1, self.num_events)[0])
+            if not 0 <= first <= last < self.duration_us:
+                raise Damaged(f"/events/t runs from {first} us to {last} us, expected "
+                               f"0 <= first <= last < root attribute 'duration_us' ({self.duration_us})")
+
+    def __enter__(self) -> "Dataset":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the underlying HDF5 file."""
+        self._file.close()
+
+    def __repr__(self) -> str:
+        return (f"Dataset({str(self.path)!r}, {self.width}x{self.height}, {self.duration_us / 1e6:.3f} s, "
+                f"{self.num_events} events, {self.num_segments} segments)")
+
+    def _damaged(self, problem: str) -> UserError:
+        """The UserError for a broken invariant found after opening."""
+        return UserError(f"{self.path}: damaged dvsot file ({problem})")
+
+    def _load(self, name: str) -> np.ndarray:
+        """A whole small dataset (ms_to_idx, boxes, segments) read into memory; a failed read names it."""
+        try:
+            return self._file[name][()]
+        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({short(exc)})") from None
+
+    def _index_at(self, t_us: int) -> int:
+        """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
+        if t_us <= 0:
+            return 0
+        ms = t_us // 1000
+        if ms >= len(self._ms_to_idx) - 1:
+            return self.num_events
+        lo, hi = int(self._ms_to_idx[ms]), int(self._ms_to_idx[ms + 1])
+        if lo == hi or t_us % 1000 == 0:
+            return lo
+        ts = self._read("t", lo, hi)
+        # a search in bad times finds a bad index
+        problem = times_problem(ts, ms * 1000, (ms + 1) * 1000, lo, f"/events/ms_to_idx[{ms}]")
+        if problem:
+            raise self._damaged(problem)
+        return lo + int(np.searchsorted(ts, t_us, side="left"))
+
+    def _read(self, column: str, i0: int, i1: int) -> np.ndarray:
+        try:
+            return self._columns[column][i0:i1]
+        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise self._damaged(f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
+                                f"({short(exc)})") from None
+
+    def _batch(self, i0: int, i1: int, t0_us: int, t1_us: int, source: str) -> EventBatch:
+        """Events i0..i1-1, checked: sorted times in [t0_us, t1_us) (microseconds), pixels on the sensor, 0/1 flags."""
+        columns = {name: self._read(name, i0, i1) for name in ("x", "y", "t", "p")}
+        if self._has_signal:
+            columns["signal"] = self._read("signal", i0, i1)
+        t = columns.pop("t")
+        problem = times_problem(t, t0_us, t1_us, i0, source) or columns_problem(columns, self._limits, i0)
+        if problem:
+            raise self._damaged(problem)
+        sig = columns["signal"].astype(bool) if self._has_signal else None
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig)
+
+    def events(self, t0_us: int, t1_us: int) -> EventBatch:
+        """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""
+        t0_us, t1_us = int(t0_us), int(t1_us)
+        i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
+        if i1 <= i0:
+            return EventBatch.empty()
+        return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
+
+    def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:
+        """Every event in order, `step` at a time, each batch checked like events() and against ms_to_idx."""
+        prev_t, next_ms = 0, 0  # the last timestamp seen (microseconds) and the first ms boundary not yet checked
+        for i0 in range(0, self.num_events, step):
+            i1 = min(i0 + step, self.num_events)
+            batch = self._batch(i0, i1, prev_t, self.duration_us, "time order and duration_us")
+            last_ms = int(batch.t[-1]) // 1000
+            # boundaries after the previous batch's last event and up to this one's are decided by this batch
+            ms = np.arange(next_ms, last_ms + 1)
+            want = i0 + np.searchsorted(batch.t, ms * 1000, side="left")
+            bad = np.flatnonzero(self._ms_to_idx[next_ms:last_ms + 1].astype(np.int64) != want)
+            if len(bad):
+                m = int(ms[bad[0]])
+                raise self._damaged(f"/events/ms_to_idx[{m}] is {int(self._ms_to_idx[m])}, but the first event "
+                                    f"at or after {m * 1000} us is event {int(want[bad[0]])}")
+            prev_t, next_ms = int(batch.t[-1]), last_ms + 1
+            yield batch
+        if np.any(self._ms_to_idx[next_ms:] != self.num_events):  # boundaries after the last event
+            raise self._damaged(f"/events/ms_to_idx points before the end after the last event ({prev_t} us)")
+
+    def verify(self) -> None:
+        """Read and check every event (a full scan); a broken invariant raises UserError naming the file and dataset."""
+        for _ in self.chunks():
+            pass
+
+    def segment(self, i: int) -> Segment:
+        """Segment i: the events of [i*segment_us, (i+1)*segment_us) and the ground truth at its end."""
+        if not 0 <= i < self.num_segments:
+            raise IndexError(f"segment {i} out of range 0..{self.num_segments - 1}")
+        t0, t1 = i * self.segment_us, (i + 1) * self.segment_us
+        vis = None if self._seg_vis is None else self._seg_vis[i].copy()
+        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis)
+
+    def segments(self, start: int = 0, stop: int | None = None) -> Iterator[Segment]:
+        """Segments start..stop-1 in order."""
+        stop = self.num_segments if stop is None else min(stop, self.num_segments)
+        for i in range(start, stop):
+            yield self.segment(i)
+
+    def segment_boxes(self) -> np.ndarray:
+        """Ground truth of every segment, (num_segments, 4) xywh pixels, NaN = absent."""
+        return self._seg_box.copy()
+
+    @property
+    def annotated(self) -> bool:
+        """True for a recording whose boxes are annotations at their own times (scored only where matched)."""
+        return self._seg_ann is not None
+
+    def segment_scored(self) -> np.ndarray:
+        """Per segment, whether its ground truth may be scored: every segment of a rendered file, matched ones of a recording."""
+        if self._seg_ann is None:
+            return np.ones(self.num_segments, bool)
+        return self._seg_ann >= 0
+
+    def segment_annotations(self) -> np.ndarray | None:
+        """Per segment, the /boxes row of its annotation (-1: none), or None for a rendered file."""
+        return None if self._seg_ann is None else self._seg_ann.copy()
+
+    def boxes(self) -> BoxTrack:
+        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels)."""
+        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
+
+
+
+def open_dataset(path: str | os.PathLike) -> Dataset:
+    """Open a dataset file for reading; a foreign or damaged file raises UserError."""
+    return Dataset(path)
+
+
+def find_datasets(spec: str | os.PathLike | list, split: str | None = None, verify: bool = True,
+                  need_events: bool = False) -> list[Path]:
+    """Dataset files named by a directory, a glob, a file or a list of those, optionally of one split; all checked
+    (need_events: a file without events is an error, e.g. for training)."""
+    specs = [spec] if isinstance(spec, (str, os.PathLike)) else list(spec)
+    paths: list[Path] = []
+    for item in specs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(p.glob("*.h5"))
+        elif any(ch in str(item) for ch in "*?["):
+            found = sorted(Path(x) for x in globmod.glob(str(item)))
+        elif p.exists():  # a file, or a FIFO or device: Dataset says what it is
+            found = [p]
+        else:
+            raise UserError(f"{item}: no such file or directory")
+        paths.extend(found)
+    result: list[Path] = []
+    for p in dict.fromkeys(paths):
+        with Dataset(p) as ds:
+            if split is None or ds.split == split:
+                if verify:  # bench and train find their files here: a damaged one stops them before any output
+                    ds.verify()
+                if need_events and ds.num_events == 0:
+                    raise UserError(f"{p}: the file holds no events (nothing to learn from)")
+                result.append(p)
+    if not result:
+        where = ", ".join(str(s) for s in specs)
+        raise UserError(f"{where}: no dvsot dataset files" + (f" of split '{split}'" if split else ""))
+    return result

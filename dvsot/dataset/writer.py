@@ -1,0 +1,304 @@
+"""The dataset file's streaming writer: events appended in chunks (ms_to_idx computed as they come), boxes,
+then per-segment ground truth and attributes at close; staged under a temporary name and renamed on success."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from dvsot import validate
+from dvsot.background import OrderedWorker
+from dvsot.boxes import interpolate_boxes, match_annotations
+from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
+from dvsot.dataset.reader import Dataset
+from dvsot.errors import RunError, UserError
+from dvsot.events import EventBatch
+
+_EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
+
+
+def _readlink(path: str) -> str | None:
+    """The target of a symbolic link (a /proc/self/fd entry), or None."""
+    try:
+        return os.readlink(path)
+    except OSError:
+        return None
+
+
+class DatasetWriter:
+    """Streams events and boxes into a new dataset file; renames it into place only on success."""
+
+    def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
+                 attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
+                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
+        if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
+            raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
+                             f"all, got {width}x{height}")
+        if segment_us < validate.MIN_SEGMENT_US:
+            raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
+        self.path = Path(path)
+        if not self.path.parent.is_dir():
+            raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
+        self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
+        from dvsot.outputs import RunOutputs, current_run
+
+        # staged beside the target (host, pid and a random token in its name); renamed at close, or with the
+        # other outputs of the enclosing run_outputs() block
+        self._own_run = None if current_run() is not None else RunOutputs()
+        self._run = current_run() or self._own_run
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression must be one of {sorted(map(str, COMPRESSIONS))}, got {compression!r}")
+        self.tmp_path = self._run.stage(self.path, ready=False)
+        self._compression = compression
+        self._filter = COMPRESSIONS[compression]
+        self.t_offset_us = int(t_offset_us)  # the recording's clock minus /events/t, microseconds
+        # annotated: boxes are annotations at their own times (a recording), scored only where one matches a
+        # segment (dvsot.boxes.match_annotations), never interpolated; else a rendered track, interpolated
+        self.annotated = bool(annotated)
+        self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
+        self._attrs: dict[str, Any] = dict(attrs or {})
+        self._file = None
+        try:
+            self._file = h5py.File(self.tmp_path, "w")
+            ev = self._file.create_group("events")
+            for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
+                ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
+                                  fletcher32=self._checksum, **self._filter)
+        except BaseException as exc:
+            self._io = None
+            self.__exit__(type(exc), exc, None)  # the temp removed; a full disk is one RunError line
+            raise
+        self._has_signal: bool | None = None
+        self._buffer: list[EventBatch] = []
+        self._buffered = 0
+        self._count = 0
+        self._last_t = -(1 << 62)
+        self._ms_to_idx: list[np.ndarray] = []
+        self._next_ms = 0  # the first millisecond boundary whose index is not known yet
+        self._box_t: list[np.ndarray] = []
+        self._box_xywh: list[np.ndarray] = []
+        self._box_vis: list[np.ndarray] = []
+        self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
+        self._closed = False
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None and not self._closed:
+            self.close()
+        elif exc_type is not None:
+            self.abort()
+            from dvsot.outputs import disk_error
+
+            reason = disk_error(exc)
+            if reason is not None:  # a full disk: one line naming the output, not h5py's traceback
+                raise RunError(f"{self.path}: cannot write ({reason}); nothing was replaced") from None
+
+    @property
+    def num_events(self) -> int:
+        """Events appended so far."""
+        return self._count + self._buffered
+
+    def set_attrs(self, **attrs: Any) -> None:
+        """Set root attributes (JSON-serialisable values; containers are stored as JSON text)."""
+        self._attrs.update(attrs)
+
+    def append_events(self, batch: EventBatch) -> None:
+        """Append a time-ordered batch whose first event is not earlier than the last one appended."""
+        n = len(batch)
+        if n == 0:
+            return
+        t = np.asarray(batch.t, dtype=np.int64)
+        if t[0] < self._last_t or (n > 1 and np.any(np.diff(t) < 0)):
+            raise ValueError("events must be appended in time order")
+        if t[0] < 0:
+            raise ValueError("event timestamps must be >= 0")
+        if t[-1] >= validate.MAX_DURATION_US:  # before ms_to_idx grows: an epoch time would ask for terabytes
+            raise ValueError(f"an event at {int(t[-1])} us lies beyond the {validate.MAX_DURATION_S} s a file holds; "
+                             f"rebase the timestamps and keep the start in t_offset_us")
+        if self._has_signal is None:
+            self._has_signal = batch.signal is not None
+            if self._has_signal:
+                self._file["events"].create_dataset("signal", shape=(0,), maxshape=(None,), dtype=np.uint8,
+                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
+                                                    **self._filter)
+        elif self._has_signal != (batch.signal is not None):
+            raise ValueError("either every event batch carries signal flags or none does")
+        # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
+        last_ms = int(t[-1] // 1000)
+        if last_ms >= self._next_ms:
+            bounds = np.arange(self._next_ms, last_ms + 1, dtype=np.int64) * 1000
+            idx = self.num_events + np.searchsorted(t, bounds, side="left")
+            self._ms_to_idx.append(idx.astype(np.uint64))
+            self._next_ms = last_ms + 1
+        self._last_t = int(t[-1])
+        self._buffer.append(batch)
+        self._buffered += n
+        if self._buffered >= _EVENT_CHUNK:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Hand the buffered events to the writer thread (compression overlaps with the caller's work)."""
+        if not self._buffer:
+            return
+        joined = EventBatch.concatenate(self._buffer)
+        n0, n1 = self._count, self._count + len(joined)
+        columns = {"x": joined.x.astype(np.uint16, copy=False), "y": joined.y.astype(np.uint16, copy=False),
+                   "t": joined.t.astype(np.int64, copy=False), "p": joined.p.astype(np.uint8, copy=False)}
+        if self._has_signal:
+            columns["signal"] = joined.signal.view(np.uint8) if joined.signal.dtype == bool else \
+                joined.signal.astype(np.uint8)
+        if self._io is None:
+            self._io = OrderedWorker(f"write {self.path.name}")
+        self._io.submit(self._write_columns, n0, n1, columns)
+        self._count = n1
+        self._buffer, self._buffered = [], 0
+
+    def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
+        """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close)."""
+        ev = self._file["events"]
+        try:
+            for name, values in columns.items():
+                ds = ev[name]
+                ds.resize((n1,))
+                ds[n0:n1] = values
+                ds.flush()  # a write error (a full disk) raises here, not later in a destructor that cannot
+        except BaseException:
+            self._discard_writes()
+            raise
+
+    def _discard_writes(self) -> None:
+        """Send the doomed file's further writes to memory, so HDF5's flushes at close neither fail nor crash."""
+        # the descriptor found through /proc (Linux): HDF5's own accessor crashes on a file whose flush failed
+        try:
+            target = os.path.realpath(self.tmp_path)
+            fds = [int(fd) for fd in os.listdir("/proc/self/fd") if _readlink(f"/proc/self/fd/{fd}") == target]
+            for fd in fds:
+                # an in-memory file takes HDF5's writes and its truncation to the file's end (sparse, no memory)
+                sink = os.memfd_create("dvsot-discarded") if hasattr(os, "memfd_create") else os.open(os.devnull, os.O_RDWR)
+                os.dup2(sink, fd)
+                os.close(sink)
+        except OSError:
+            pass
+
+    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None) -> None:
+        """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal."""
+        t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
+        b = np.asarray(xywh, dtype=np.float32).reshape(-1, 4)
+        v = b if xywh_visible is None else np.asarray(xywh_visible, dtype=np.float32).reshape(-1, 4)
+        if not (len(t) == len(b) == len(v)):
+            raise ValueError("box times and rows differ in length")
+        self._box_t.append(t)
+        self._box_xywh.append(b)
+        self._box_vis.append(v)
+
+    def close(self, duration_us: int | None = None) -> Path:
+        """Finish the file (ms_to_idx, per-segment ground truth, attributes) and rename it into place."""
+        if self._closed:
+            return self.path
+        try:
+            self._flush()
+            if self._io is not None:
+                self._io.wait()  # every event chunk is written (or its error raised here)
+                self._io.stop()
+            box_t = np.concatenate(self._box_t) if self._box_t else np.empty(0, np.int64)
+            box_xywh = np.concatenate(self._box_xywh) if self._box_xywh else np.empty((0, 4), np.float32)
+            box_vis = np.concatenate(self._box_vis) if self._box_vis else np.empty((0, 4), np.float32)
+            if len(box_t) > 1 and np.any(np.diff(box_t) <= 0):
+                raise ValueError("box sample times must be strictly increasing")
+            for what, rows in (("xywh", box_xywh), ("xywh_visible", box_vis)):
+                problem = validate.box_problem(rows, self.width, self.height)
+                if problem:
+                    raise ValueError(f"boxes {what}: {problem}")
+            if duration_us is None:
+                candidates = [self._last_t + 1 if self._count else 0, int(box_t[-1]) if len(box_t) else 0]
+                duration_us = max(candidates)
+            duration_us = int(duration_us)
+            if duration_us > validate.MAX_DURATION_US:
+                raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
+            if self._count and self._last_t >= duration_us:
+                raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
+            duration_ms = -(-duration_us // 1000)
+            tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
+            ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
+            f = self._file
+            ck = {"fletcher32": self._checksum}
+            f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
+            f["ms_to_idx"] = f["events/ms_to_idx"]  # a hard link: one table, two names
+            f.create_dataset("t_offset", data=np.int64(self.t_offset_us))
+            g = f.create_group("boxes")
+            g.create_dataset("t", data=box_t, maxshape=(None,), **ck)
+            g.create_dataset("xywh", data=box_xywh, maxshape=(None, 4), **ck)
+            g.create_dataset("xywh_visible", data=box_vis, maxshape=(None, 4), **ck)
+            n_seg = duration_us // self.segment_us
+            seg_t = (np.arange(n_seg, dtype=np.int64) + 1) * self.segment_us
+            if self.annotated:
+                match = match_annotations(box_t, self.segment_us, n_seg)
+                nan = np.full((1, 4), np.nan, np.float32)
+                seg_box = np.where((match >= 0)[:, None], np.concatenate([box_xywh, nan])[match], nan)
+                seg_vis = np.where((match >= 0)[:, None], np.concatenate([box_vis, nan])[match], nan)
+            elif len(box_t):
+                seg_box = interpolate_boxes(box_t, box_xywh, seg_t).astype(np.float32)
+                seg_vis = interpolate_boxes(box_t, box_vis, seg_t).astype(np.float32)
+            else:
+                seg_box = np.full((n_seg, 4), np.nan, np.float32)
+                seg_vis = seg_box.copy()
+            s = f.create_group("segments")
+            s.create_dataset("t", data=seg_t, **ck)
+            s.create_dataset("xywh", data=seg_box.reshape(-1, 4), **ck)
+            s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
+            if self.annotated:
+                s.create_dataset("annotation", data=match, **ck)
+            attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
+            attrs.update(self._attrs)
+            attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
+                         segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                         ground_truth="annotations" if self.annotated else "rendered")
+            for key, value in attrs.items():
+                write_attr(f.attrs, key, encode_attr(value))
+            # over the values as a reader decodes them, so both sides hash the same thing
+            stored = {k: decode_attr(v) for k, v in f.attrs.items()}
+            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
+            f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
+            f.close()
+            _read_back(self.tmp_path, self.path)
+            self._run.done(self.path)
+            if self._own_run is not None:
+                from dvsot.outputs import writing
+
+                with writing(self.path):
+                    self._own_run.commit()
+        except BaseException:
+            self.abort()
+            raise
+        self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        """Discard the temporary file; nothing at the target path is touched."""
+        self._closed = True
+        if self._io is not None:
+            self._io.stop()  # the chunk being written finishes; the file is closed after it
+        self._discard_writes()  # on a full disk HDF5's flushes at close fail again and again, then crash at exit
+        try:
+            self._file.close()
+        except Exception:
+            pass
+        self._run.drop(self.path)
+
+
+def _read_back(tmp: Path, path: Path) -> None:
+    """Open the finished temp file as a reader would and read every event: a file that fails its checks (a chunk
+    whose Fletcher-32 checksum does not match, seen once in a long render) raises RunError and never replaces path."""
+    try:
+        with Dataset(tmp) as ds:
+            ds.verify()
+    except UserError as exc:
+        raise RunError(f"{path}: the file just written failed its read-back check, nothing replaced "
+                       f"({str(exc).removeprefix(str(tmp) + ': ')})") from None
+
