@@ -130,7 +130,8 @@ def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
     fires = vmax[:, 1] >= THETA
     return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
             "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
-            "vmax_neg": float(vmax[~pos, 1].mean()) if (~pos).any() else float("nan")}
+            "vmax_neg": float(vmax[~pos, 1].mean()) if (~pos).any() else float("nan"),
+            "vmax_max": float(vmax[:, 1].max())}
 
 
 def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
@@ -219,6 +220,9 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
             final = evaluate(model, *val_batch, cfg)
             final["step"] = step
             history["val"].append(final)
+            # a network whose target output never rises above 0 cannot track; with eq. 5 and no bias nothing
+            # revives it (no spike, no surrogate gradient), so say so rather than hand it on as trained
+            history["silent"] = final["vmax_max"] <= 0.0
         history.update(steps=step, minutes=(time.monotonic() - start) / 60, train_segments=len(train_items),
                        val_segments=len(val_pick))
         return model, history

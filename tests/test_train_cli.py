@@ -5,6 +5,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -105,3 +106,41 @@ def test_tiny_run_writes_the_checkpoint_and_its_metadata(data, tmp_path, capsys)
     assert model.cfg.channels == (2, 2, 2) and meta["train_config"]["lr"] == 2e-3
     assert json.loads(out.with_suffix(".json").read_text())["train_config"]["epochs"] == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "m.pt"]
+
+
+def test_calibration_is_a_deviation_off_by_default(data, tmp_path, capsys):
+    """`dvsot train` trains the paper preset: no data-driven initial scale unless --calibrate asks for it."""
+    out = tmp_path / "m.pt"
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--calibrate"]) == 0
+    capsys.readouterr()
+    assert load_checkpoint(out)[1]["train_config"]["calibrate"] is True
+    from dvsot.cli import build_parser
+    assert build_parser().parse_args(["train"]).calibrate is None  # unset: TrainConfig's default (False)
+
+
+def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path, capsys, monkeypatch):
+    """Training that ends with a target output that never rises above 0 exits 1 naming the file; -o keeps its bytes."""
+    import sctn.train
+    from sctn.network import SCTN, NetworkConfig
+
+    def dead(files, cfg, progress=True):
+        model = SCTN(NetworkConfig(channels=(2, 2, 2), fc=(4, 4)))
+        with torch.no_grad():
+            for p in model.parameters():
+                p.zero_()
+        with sctn.train.Dataset(files[0]) as ds:
+            segs = [ds.segment(i) for i in sctn.train.usable_segments(ds, cfg.min_box_px)[:2]]
+        x, iou, pos = sctn.train.segment_batch([(s.events, s.t0_us, s.box) for s in segs], [(64, 48)] * len(segs),
+                                               np.random.default_rng(0), model.cfg)
+        final = sctn.train.evaluate(model, x, iou, pos, cfg)
+        assert final["vmax_max"] == 0.0  # zero weights: no current, no voltage, on every sample
+        return model, {"val": [final], "silent": final["vmax_max"] <= 0, "steps": 0, "minutes": 0.0,
+                       "train_segments": 2, "val_segments": 2}
+
+    monkeypatch.setattr("dvsot.commands.train._trainer", lambda model: dead)
+    out = tmp_path / "m.pt"
+    out.write_bytes(b"a good checkpoint")
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(out) in err[0] and "silent" in err[0], err
+    assert out.read_bytes() == b"a good checkpoint" and sorted(p.name for p in tmp_path.iterdir()) == ["m.pt"]

@@ -15,7 +15,7 @@ MODELS = ("sctn", "sctn_ann", "siamfc")
 SCTN_LIKE = ("sctn", "sctn_ann")
 # flags that only some models have: {flag dest: models}; a flag is given when its value is not None
 ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
-        "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "no_calibration": ("sctn",),
+        "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
         "tail_steps": ("sctn",), "input": ("sctn_ann",)}
 
 
@@ -44,8 +44,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="deviation from the paper: square each sample's eq.-5 error (an ablation row)")
     p.add_argument("--background-term", action="store_true", default=None,
                    help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
-    p.add_argument("--no-calibration", action="store_true", default=None,
-                   help="sctn: initialise without the data-driven weight scaling (an ablation row)")
+    p.add_argument("--calibrate", action="store_true", default=None,
+                   help="sctn, deviation from the paper: data-driven initial weight scale (an ablation row)")
     p.add_argument("--tail-steps", type=int, default=None,
                    help="sctn, deviation from the paper: empty steps after the 10 ms window (default 0)")
     p.add_argument("--bias", action="store_true", default=None,
@@ -101,7 +101,7 @@ def _train_config(args: argparse.Namespace):
             return SiamFCTrainConfig(**common)
         return TrainConfig(**common, loss=args.loss or "exp", ops_penalty=args.ops_penalty or 0.0,
                            squared_error=bool(args.squared_error), background_term=bool(args.background_term),
-                           calibrate=not args.no_calibration, network=_network_config(args))
+                           calibrate=bool(args.calibrate), network=_network_config(args))
     except TrainConfigError as exc:  # every field set here is the flag of the same name
         raise UserError(f"--{exc.field.replace('_', '-')} {exc.problem}") from None
 
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from dvsot.dataset import find_datasets
-    from dvsot.errors import UserError
+    from dvsot.errors import RunError, UserError
     from sctn.checkpoint import check_checkpoint_output, save_checkpoint
     from sctn.train import provenance
 
@@ -139,8 +139,12 @@ def run(args: argparse.Namespace) -> int:
         model, history = _trainer(args.model)(files, cfg, progress=not args.quiet)
     except ValueError as exc:
         raise UserError(f"{', '.join(map(str, args.data))}: {exc}") from None
-    save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
     final = history["val"][-1] if history["val"] else {}
+    if history.get("silent"):  # a dead network is no checkpoint: keep what -o held
+        raise RunError(f"{out}: not written: the trained network is silent (target output {final['vmax_max']:g} "
+                       f"at most on the {history['val_segments']} validation segments' samples); train again "
+                       f"with another --seed" + (" or --calibrate" if args.model == "sctn" else ""))
+    save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
     print(json.dumps({"checkpoint": str(out), "model": args.model, "steps": history["steps"],
                       "minutes": round(history["minutes"], 2), "train_segments": history["train_segments"],
                       "val": final}))
