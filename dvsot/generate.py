@@ -114,7 +114,7 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
     _status(progress, f"{cfg.name}: {len(times)} frames to render; building the Blender scene")
     t_us = np.rint(times * 1e6).astype(np.int64)
     W, H = cfg.sensor.width, cfg.sensor.height
-    params = cfg.event_params()
+    params = cfg.events
     sim = EventSimulator(W, H, params, cfg.derived_seed("events"))
     attrs = {"name": cfg.name, "split": cfg.split, "scene_yaml": scene_text,
              "scene_resolved": json.loads(cfg.model_dump_json()), "simulator": params.model_dump(),

@@ -330,7 +330,7 @@ def check_template(tpl: Template) -> None:
         for k in range(n):
             v = _draw(tpl, None, probe=(tpath, k))
             try:
-                SceneConfig.model_validate(v.scene).event_params()
+                SceneConfig.model_validate(v.scene)
             except ValidationError:
                 validate_variant(tpl, v, note=_probe_note(tpl.data, tpath, k), check_assets=False)
 
@@ -361,9 +361,7 @@ def validate_variant(tpl: Template, v: Variant, overrides: dict | None = None, n
         if check_assets:
             return validate_scene(_copy(v.scene), tpl.source, locate, tpl.base_dir, overrides)
         try:
-            cfg = SceneConfig.model_validate(_copy(v.scene))
-            cfg.event_params()
-            return cfg
+            return SceneConfig.model_validate(_copy(v.scene))
         except ValidationError:
             validate_scene(_copy(v.scene), tpl.source, locate, tpl.base_dir, overrides)  # raises its one-line form
             raise
