@@ -17,6 +17,7 @@ from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_at
 from dvsot.dataset.reader import Dataset
 from dvsot.errors import RunError, UserError
 from dvsot.events import EventBatch
+from dvsot.h5chunks import encode_chunk
 
 _EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
 
@@ -142,12 +143,22 @@ class DatasetWriter:
         if self._buffered >= _EVENT_CHUNK:
             self._flush()
 
-    def _flush(self) -> None:
-        """Hand the buffered events to the writer thread (compression overlaps with the caller's work)."""
+    def _flush(self, final: bool = False) -> None:
+        """Hand the buffered events to the writer thread in whole chunks (all of them if final); the rest stays buffered.
+
+        Whole chunks let the gzip columns go to the file as chunks encoded outside HDF5 (dvsot.h5chunks),
+        and their compression overlaps with the caller's work.
+        """
         if not self._buffer:
             return
         joined = EventBatch.concatenate(self._buffer)
-        n0, n1 = self._count, self._count + len(joined)
+        k = len(joined) if final else len(joined) // _EVENT_CHUNK * _EVENT_CHUNK
+        if k == 0:
+            return
+        rest = joined.select(slice(k, None))
+        if k < len(joined):
+            joined = joined.select(slice(0, k))
+        n0, n1 = self._count, self._count + k
         columns = {"x": joined.x.astype(np.uint16, copy=False), "y": joined.y.astype(np.uint16, copy=False),
                    "t": joined.t.astype(np.int64, copy=False), "p": joined.p.astype(np.uint8, copy=False)}
         if self._has_signal:
@@ -157,16 +168,25 @@ class DatasetWriter:
             self._io = OrderedWorker(f"write {self.path.name}")
         self._io.submit(self._write_columns, n0, n1, columns)
         self._count = n1
-        self._buffer, self._buffered = [], 0
+        self._buffer, self._buffered = ([rest], len(rest)) if len(rest) else ([], 0)
 
     def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
-        """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close)."""
+        """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close).
+
+        n0 is a multiple of the chunk length; gzip columns are written as chunks encoded by dvsot.h5chunks
+        (the filters HDF5 would apply, with a faster deflate), the other compressions through HDF5's filters.
+        """
         ev = self._file["events"]
         try:
             for name, values in columns.items():
                 ds = ev[name]
                 ds.resize((n1,))
-                ds[n0:n1] = values
+                if self._compression == "gzip":
+                    for c0 in range(n0, n1, _EVENT_CHUNK):
+                        chunk = encode_chunk(values[c0 - n0:c0 - n0 + _EVENT_CHUNK], _EVENT_CHUNK, self._checksum)
+                        ds.id.write_direct_chunk((c0,), chunk)
+                else:
+                    ds[n0:n1] = values
                 ds.flush()  # a write error (a full disk) raises here, not later in a destructor that cannot
         except BaseException:
             self._discard_writes()
@@ -202,7 +222,7 @@ class DatasetWriter:
         if self._closed:
             return self.path
         try:
-            self._flush()
+            self._flush(final=True)
             if self._io is not None:
                 self._io.wait()  # every event chunk is written (or its error raised here)
                 self._io.stop()
