@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sctn.samples import TRACK
+
 # row -> (TrainConfig fields, NetworkConfig fields, SCTNTracker options) that differ from the paper preset
 ROWS: dict[str, tuple[dict, dict, dict]] = {
     "paper": ({}, {}, {}),
@@ -145,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--segments-per-epoch", type=int, default=400)
     p.add_argument("--batch-segments", type=int, default=2)
     p.add_argument("--lr", type=float, default=3e-3)
-    p.add_argument("--candidates", type=int, default=256)
+    p.add_argument("--candidates", type=int, default=TRACK.n)
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
     p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
     p.add_argument("--jobs", type=int, default=1, help="(row, seed) runs in parallel processes")

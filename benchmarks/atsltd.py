@@ -17,9 +17,10 @@ from __future__ import annotations
 import numpy as np
 
 from dvsot.events import EventBatch
+from dvsot.validate import SEGMENT_US
 
 
-def atsltd_frame(events: EventBatch, width: int, height: int, window_us: int = 10_000) -> np.ndarray:
+def atsltd_frame(events: EventBatch, width: int, height: int, window_us: int = SEGMENT_US) -> np.ndarray:
     """The eq. 11 frame (uint8, height x width) of a batch of events spanning window_us microseconds."""
     if window_us <= 0:
         raise ValueError(f"window_us must be positive, got {window_us}")
@@ -42,7 +43,7 @@ def atsltd_frame(events: EventBatch, width: int, height: int, window_us: int = 1
     return frame.reshape(height, width).astype(np.uint8)
 
 
-def atsltd_frame_bgr(events: EventBatch, width: int, height: int, window_us: int = 10_000) -> np.ndarray:
+def atsltd_frame_bgr(events: EventBatch, width: int, height: int, window_us: int = SEGMENT_US) -> np.ndarray:
     """The eq. 11 frame repeated into three channels (uint8, height x width x 3) for OpenCV trackers."""
     gray = atsltd_frame(events, width, height, window_us)
     return np.repeat(gray[:, :, None], 3, axis=2)

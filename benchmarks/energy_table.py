@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sctn.samples import TRACK
+
 
 def _sample_segments(files: list[Path], n_segments: int, seed: int) -> list:
     """n segments with a ground-truth box, drawn uniformly from all files."""
@@ -102,7 +104,7 @@ def ann_rows(n_candidates: int, twin=None, siamfc=None, siamfc_scales: int = 3, 
     return rows
 
 
-def energy_table(model, files: list[Path], n_candidates: int = 256, n_segments: int = 64, seed: int = 0,
+def energy_table(model, files: list[Path], n_candidates: int = TRACK.n, n_segments: int = 64, seed: int = 0,
                  twin=None, siamfc=None, notes: tuple[str, ...] = ()) -> dict:
     """Rows {method: {ac_ops, mac_ops, energy_pj, x_sctn}} per tracking segment (n_candidates) or frame, plus firing
     statistics; x_sctn is a row's energy over SCTN's per-candidate energy (the paper's ratio). `twin` (sctn.ann's
@@ -131,6 +133,8 @@ def energy_table(model, files: list[Path], n_candidates: int = 256, n_segments: 
 
 def format_energy_table(table: dict) -> str:
     """Terminal text of the energy table."""
+    from sctn.energy import E_AC_PJ, E_MAC_PJ
+
     lines = [f"{'per segment (' + str(table['n_candidates']) + ' candidates) or frame':42s} {'AC ops':>10s} "
              f"{'MAC ops':>10s} {'energy':>12s} {'x SCTN':>8s}", "-" * 86]
     for name, row in table["per_segment"].items():
@@ -146,7 +150,7 @@ def format_energy_table(table: dict) -> str:
     lines.append(f"(SNN ops from {table['firing']['segments']} sampled segments; fast search: convolutions once "
                  "over the candidates' region, fc1 once per distinct integer crop; bilinear adds the MACs that "
                  "mix fc1's sums of the four crops around each candidate; ANN MACs counted on the layers run; "
-                 "AC 0.9 pJ, MAC 4.6 pJ; x SCTN: energy over SCTN's per-candidate energy)")
+                 f"AC {E_AC_PJ} pJ, MAC {E_MAC_PJ} pJ; x SCTN: energy over SCTN's per-candidate energy)")
     lines += table.get("notes", [])
     return "\n".join(lines)
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 FAILURE_IOU = 0.5  # a counted segment with IoU below this is a failure (paper §3.2)
+ALL = "all"  # the name of the row that pools every sequence, in every table
 BETA = 2.0  # ARscore weight: R counts beta^2 times as much as A (paper eq. 10)
 
 

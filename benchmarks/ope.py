@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.metrics import ALL
 from benchmarks.protocol import SequenceResult
 from dvsot.names import markdown_cell  # sequence and tracker names are free text
 
 IOU_THRESHOLDS = np.linspace(0.0, 1.0, 21)
 PIXEL_THRESHOLDS = np.arange(0, 51, dtype=np.float64)
 PRECISION_PX = 20
-ALL = "all"
 
 
 def centre_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:

@@ -14,13 +14,13 @@ from typing import Mapping
 
 import numpy as np
 
+from benchmarks.metrics import FAILURE_IOU  # the protocol's failure threshold, drawn as a reference line
 from dvsot.names import plot_text  # sequence and tracker names are free text: no mathtext, one line
-
-FAILURE_IOU = 0.5  # the protocol's failure threshold, drawn as a reference line
+from dvsot.validate import SEGMENT_US
 
 
 def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png: str | os.PathLike,
-                       segment_ms: float = 10.0, sequences: list[str] | None = None,
+                       segment_ms: float = SEGMENT_US / 1000, sequences: list[str] | None = None,
                        title: str | None = None) -> Path:
     """Write a PNG with one panel per sequence: IoU per segment (time in s) for each tracker; returns the path."""
     import matplotlib

@@ -31,14 +31,9 @@ from benchmarks.metrics import FAILURE_IOU
 from benchmarks.trackers.base import Tracker
 from dvsot.boxes import iou_xywh
 from dvsot.dataset import Dataset
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 
 MIN_BOX_PX = 1.0
-
-
-def one_line(exc: BaseException) -> str:
-    """'Type: message' on one line (torch and pydantic messages span several, which would break the report)."""
-    return " ".join(f"{type(exc).__name__}: {exc}".split())
 
 
 @dataclass
@@ -121,7 +116,7 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
     except Exception as exc:  # a crashing tracker fails this sequence only
         last = traceback.extract_tb(exc.__traceback__)[-1]
         return SequenceResult(name, dataset.name, np.full(n, np.nan), preds, inits, spent, tracked,
-                              error=f"{one_line(exc)} ({last.filename.split('/')[-1]}:{last.lineno})",
+                              error=f"{exception_line(exc)} ({last.filename.split('/')[-1]}:{last.lineno})",
                               init_seconds=init_spent, segment_seconds=seconds)
     energy = None
     if energies:

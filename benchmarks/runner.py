@@ -16,9 +16,10 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
     """One tracker on one dataset file; a tracker that fails to build or crashes gives a result with `error` set."""
     import numpy as np
 
-    from benchmarks.protocol import one_line, run_sequence
+    from benchmarks.protocol import run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
     from dvsot.dataset import Dataset
+    from dvsot.errors import exception_line
 
     for m in modules:
         load_tracker_module(m)
@@ -28,7 +29,7 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
         except Exception as exc:  # a runtime failure: benchmark() built each tracker's class up front
             n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
             return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
-                                  error=one_line(exc))
+                                  error=exception_line(exc))
         if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
             sys.modules["torch"].set_num_threads(1)
         result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")

@@ -12,11 +12,10 @@ import json
 import math
 from pathlib import Path
 
-from benchmarks.metrics import pooled, scores
+from benchmarks.metrics import ALL, pooled, scores
 from benchmarks.protocol import SequenceResult
 from dvsot.names import latex_text, markdown_cell  # sequence and tracker names are free text
 
-ALL = "all"
 
 
 def summarise(results: list[SequenceResult]) -> dict:

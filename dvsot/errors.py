@@ -1,4 +1,5 @@
-"""The exception types the command line turns into one line: bad input (exit status 2), a failed run (exit 1)."""
+"""The exception types the command line turns into one line (bad input: exit status 2, a failed run: exit 1), and
+the one formatter of any exception as one line."""
 
 
 class UserError(Exception):
@@ -13,3 +14,12 @@ class RunError(Exception):
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))
+
+
+def exception_line(exc: BaseException, limit: int | None = None, kind: bool = True) -> str:
+    """An exception as one line: 'Type: message' with white space folded (torch and pydantic messages span several
+    lines), the message cut to `limit` characters; without `kind` the message alone; the type when it has none."""
+    text = " ".join(str(exc).split())[:limit]
+    if not text:
+        return type(exc).__name__
+    return f"{type(exc).__name__}: {text}" if kind else text

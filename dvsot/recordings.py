@@ -26,6 +26,7 @@ import numpy as np
 
 from dvsot.errors import UserError
 from dvsot.exchange import EventFile, read_event_file
+from dvsot.validate import SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time
@@ -157,7 +158,7 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
 
 def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: str | os.PathLike | None = None,
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
-                     size: tuple[int, int] | None = None, segment_us: int = 10_000, evt_version: str = "evt3",
+                     size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US, evt_version: str = "evt3",
                      interpolate: bool = False) -> Path:
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written."""
     from dvsot import __version__

@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 from dvsot.outputs import replacing
 
 _RENDER_LOCK = threading.Lock()  # one Blender scene per process, whatever the worker's thread count
@@ -37,12 +37,6 @@ class SceneTask:
     overrides: dict = field(default_factory=dict)
     preview: bool = False
     record: dict = field(default_factory=dict)  # manifest fields known up front (variant, seed, drawn)
-
-
-def one_line(exc: BaseException) -> str:
-    """An exception as one short line: its type and first message line."""
-    text = " ".join(str(exc).split())[:300]
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def parse_scheduler(spec: str) -> tuple[str, int | str]:
@@ -118,7 +112,7 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             summary["render_threads"] = cfg.render.threads
             summary["warnings"] = warnings
     except Exception as exc:  # returned, not raised: the head records it and retries (no traceback in worker logs)
-        return {"error": one_line(exc), "worker": worker}
+        return {"error": exception_line(exc, 300), "worker": worker}
     summary["worker"] = worker
     return summary
 
@@ -201,7 +195,7 @@ def _record(manifest: Manifest, i: int, outcome: dict | BaseException, final: bo
         rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"),
                    warnings=outcome.get("warnings") or [])
     else:
-        err = outcome["error"] if isinstance(outcome, dict) else one_line(outcome)
+        err = outcome["error"] if isinstance(outcome, dict) else exception_line(outcome, 300)
         worker = outcome["worker"] if isinstance(outcome, dict) else None
         rec["attempts"].append({"worker": worker, "error": err})
         rec.update(status="failed" if final else "retrying", error=err)
@@ -239,13 +233,13 @@ class _client:
                 from dvsot.errors import RunError
 
                 raise RunError(f"--scheduler local:{self.arg}: the worker processes did not start "
-                               f"({one_line(exc)})") from None
+                               f"({exception_line(exc, 300)})") from None
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(self.arg, timeout="20s")
             except (OSError, TimeoutError) as exc:
-                raise UserError(f"--scheduler {self.arg}: cannot reach the scheduler ({one_line(exc)})") from None
+                raise UserError(f"--scheduler {self.arg}: cannot reach the scheduler ({exception_line(exc, 300)})") from None
         return self.client
 
     def __exit__(self, *exc) -> None:
@@ -316,7 +310,7 @@ def map_tasks(scheduler: str, fn: Callable, calls: list[tuple],
                 results[k] = fut.result()
             except Exception as exc:  # a crash of the task itself, a dead worker, a lost connection
                 client.cancel(list(futures))
-                raise RunError(f"task {k + 1} of {len(calls)} failed on {scheduler}: {one_line(exc)}") from None
+                raise RunError(f"task {k + 1} of {len(calls)} failed on {scheduler}: {exception_line(exc, 300)}") from None
             if on_result is not None:
                 on_result(k, results[k])
     return results

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 
 Mesh = tuple[np.ndarray, list[list[int]]]
 
@@ -159,7 +159,7 @@ def load_mesh_file(path: Path) -> Mesh:
     try:
         loaded = trimesh.load(str(path), force="mesh")
     except Exception as exc:  # trimesh raises many kinds for damaged files
-        raise UserError(f"{path}: cannot read mesh ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})") from None
+        raise UserError(f"{path}: cannot read mesh ({exception_line(exc, 200)})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.vertices) == 0 or len(loaded.faces) == 0:
         raise UserError(f"{path}: mesh file holds no triangles")
     # trimesh keeps glTF's Y-up; Blender's importer turns Y-up into Z-up the same way

@@ -15,8 +15,9 @@ from typing import Annotated, Callable, Literal
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from dvsot.config import Float, Strict, Vec3
+from dvsot.config import Vec3
 from dvsot.errors import UserError
+from dvsot.strict import Float, Strict
 
 _PLANES = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}
 MAX_STEPS = 100_000

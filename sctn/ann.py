@@ -196,7 +196,7 @@ def default_twin_path() -> Path:
 
 def load_twin(path: str | os.PathLike | None = None) -> tuple[SCTNTwin, dict]:
     """The twin and metadata of a sctn_ann checkpoint (the shipped one if path is None); UserError if unusable."""
-    from dvsot.errors import UserError
+    from dvsot.errors import UserError, exception_line
     from sctn.checkpoint import read_checkpoint
 
     p = Path(path) if path is not None else default_twin_path()
@@ -207,7 +207,6 @@ def load_twin(path: str | os.PathLike | None = None) -> tuple[SCTNTwin, dict]:
         model = SCTNTwin(TwinConfig(**blob["config"]))
         model.load_state_dict(blob["state_dict"])
     except Exception as exc:  # a config or tensors that do not fit the twin
-        detail = " ".join(str(exc).split())[:200]
-        raise UserError(f"{p}: not a usable sctn_ann checkpoint ({type(exc).__name__}: {detail})") from None
+        raise UserError(f"{p}: not a usable sctn_ann checkpoint ({exception_line(exc, 200)})") from None
     model.eval()
     return model, blob.get("meta", {})

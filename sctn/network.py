@@ -22,7 +22,7 @@ import torch
 from pydantic import BaseModel, ConfigDict
 from torch import nn
 
-from sctn.neurons import CLIF
+from sctn.neurons import ALPHA_M, ALPHA_S, CLIF
 from sctn.spike_sums import mix_corners, window_sums
 
 
@@ -40,8 +40,8 @@ class NetworkConfig(BaseModel):
     kernels: tuple[int, int, int] = (4, 3, 3)
     strides: tuple[int, int, int] = (4, 2, 1)
     fc: tuple[int, int] = (64, 32)
-    alpha_m: float = 4.0
-    alpha_s: float = 1.5
+    alpha_m: float = ALPHA_M
+    alpha_s: float = ALPHA_S
     surrogate_width: float = 1.0
 
     def conv_sizes(self) -> list[int]:

@@ -45,7 +45,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-THETA = 0.5
+THETA = 0.5  # firing threshold (the paper's, every layer)
+ALPHA_M, ALPHA_S = 4.0, 1.5  # default membrane and synaptic time constants (ms), learnable per channel
 
 
 class RectSurrogate(torch.autograd.Function):
@@ -135,7 +136,7 @@ class CLIFFunction(torch.autograd.Function):
 class CLIF(nn.Module):
     """A layer of C-LIF neurons with learnable per-channel time constants (ms); input (T, B, C, ...) currents."""
 
-    def __init__(self, channels: int, alpha_m: float = 4.0, alpha_s: float = 1.5, theta: float = THETA,
+    def __init__(self, channels: int, alpha_m: float = ALPHA_M, alpha_s: float = ALPHA_S, theta: float = THETA,
                  surrogate_width: float = 1.0) -> None:
         super().__init__()
         if not alpha_m > alpha_s + 0.05 or alpha_s <= 1.0:

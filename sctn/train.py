@@ -27,8 +27,9 @@ from dvsot.lazy import callable_module
 from sctn.encoding import encode_boxes
 from sctn.energy import layer_ops
 from sctn.finetune import finetune  # noqa: F401  (re-exported: callers import it from here)
-from sctn.loss import THETA, voltage_loss
+from sctn.loss import voltage_loss
 from sctn.network import SCTN, NetworkConfig
+from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
 
 

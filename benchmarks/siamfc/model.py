@@ -98,7 +98,7 @@ def default_siamfc_path() -> Path:
 
 def load_siamfc(path: str | os.PathLike | None = None) -> tuple[SiamFC, dict]:
     """The network and metadata of a siamfc checkpoint (the shipped one if path is None); UserError if unusable."""
-    from dvsot.errors import UserError
+    from dvsot.errors import UserError, exception_line
     from sctn.checkpoint import read_checkpoint
 
     p = Path(path) if path is not None else default_siamfc_path()
@@ -109,7 +109,6 @@ def load_siamfc(path: str | os.PathLike | None = None) -> tuple[SiamFC, dict]:
         model = SiamFC(SiamFCConfig(**blob["config"]))
         model.load_state_dict(blob["state_dict"])
     except Exception as exc:  # a config or tensors that do not fit the network
-        detail = " ".join(str(exc).split())[:200]
-        raise UserError(f"{p}: not a usable siamfc checkpoint ({type(exc).__name__}: {detail})") from None
+        raise UserError(f"{p}: not a usable siamfc checkpoint ({exception_line(exc, 200)})") from None
     model.eval()
     return model, blob.get("meta", {})

@@ -11,12 +11,10 @@ target, and the size moves towards the chosen scale by `scale_lr`. SiamFC's publ
 
 from __future__ import annotations
 
-from typing import Annotated
-
 import cv2
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field, Strict
+from pydantic import Field
 
 from benchmarks.atsltd import atsltd_frame
 from benchmarks.siamfc.crops import crop, exemplar_extent
@@ -24,16 +22,13 @@ from benchmarks.siamfc.model import TOTAL_STRIDE, SiamFC
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
+from dvsot.strict import Float, Int, Strict
 
-Int = Annotated[int, Strict()]
-Float = Annotated[float, Strict()]
 MIN_SIZE_PX = 4.0
 
 
-class SiamFCOptions(BaseModel):
+class SiamFCOptions(Strict):
     """`--option siamfc.KEY=VALUE` settings (SiamFC's published values by default)."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     checkpoint: str | None = None
     scale_num: Int = Field(3, ge=1)

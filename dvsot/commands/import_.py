@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 
+from dvsot.validate import SEGMENT_US
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot import`."""
@@ -27,7 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--box-times-us", help="annotation times, one integer microsecond per line, on the events' clock")
     p.add_argument("--absent", help="absent flags, one 0/1 per box (1 = target absent)")
     p.add_argument("--size", help="sensor WIDTHxHEIGHT, for files that do not say (CSV, TXT without a size line)")
-    p.add_argument("--segment-us", type=int, default=10_000, help="segment length, microseconds (default 10000)")
+    p.add_argument("--segment-us", type=int, default=SEGMENT_US,
+                   help=f"segment length, microseconds (default {SEGMENT_US})")
     p.add_argument("--evt", choices=["2", "3"], default="3", help="EVT version of a .raw file without one in its header")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+from dvsot.validate import SEGMENT_US
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot simulate`."""
@@ -29,7 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--leak-hz", type=float, default=0.0, help="leak events per pixel per second")
     p.add_argument("--srgb", action="store_true", help="undo the sRGB curve of 8/16-bit input before use")
     p.add_argument("--seed", type=int, default=0, help="random seed (thresholds, noise)")
-    p.add_argument("--segment-us", type=int, default=10_000, help="segment length, microseconds (default 10000)")
+    p.add_argument("--segment-us", type=int, default=SEGMENT_US,
+                   help=f"segment length, microseconds (default {SEGMENT_US})")
     p.add_argument("--boxes", help="optional CSV of target boxes: t_s,x,y,w,h per line (pixels)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -12,13 +12,12 @@ import hashlib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, Strict as StrictType, model_validator
+from pydantic import Field, model_validator
 
+from dvsot.defaults import SEGMENT_US
 from dvsot.events import EventParams
+from dvsot.strict import Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.config re-exports them)
 
-# Numbers must be numbers: no "1.6" strings or true/false where a number goes (an int is a fine float)
-Float = Annotated[float, StrictType()]
-Int = Annotated[int, StrictType()]
 # Sane ranges (dvsot.scene_checks has the checks that need the whole scene): coordinates within 1000 km
 # (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
 Coord = Annotated[Float, Field(ge=-1e6, le=1e6)]
@@ -26,12 +25,6 @@ Vec3 = tuple[Coord, Coord, Coord]
 Scale = Annotated[Float, Field(ge=1e-3, le=1e3)]
 Size = Annotated[Float, Field(gt=0, le=1e4, description="metres")]
 Colour = tuple[Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)]]
-
-
-class Strict(BaseModel):
-    """Base model: unknown keys are errors, and so are NaN and infinite numbers."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class Sensor(Strict):
@@ -245,7 +238,8 @@ class SceneConfig(Strict):
     challenges: list[str] = []
     seed: Int = Field(0, ge=0, le=2**63 - 1, description="master seed: every other seed derives from it")
     duration_s: Float = Field(ge=0.001, le=600, description="seconds; at least 1 ms")
-    segment_ms: Float = Field(10.0, ge=1, le=60_000, description="milliseconds, at least 1 (dvsot.validate)")
+    segment_ms: Float = Field(SEGMENT_US / 1000, ge=1, le=60_000,
+                              description="milliseconds, at least 1 (dvsot.validate)")
     sensor: Sensor = Sensor()
     camera: Trajectory
     target: SceneObject

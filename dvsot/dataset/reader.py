@@ -14,8 +14,8 @@ import numpy as np
 from dvsot import validate
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
 from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      columns_problem, int_attr, ms_to_idx_problem, short, times_problem)
-from dvsot.errors import UserError
+                                      columns_problem, int_attr, ms_to_idx_problem, times_problem)
+from dvsot.errors import UserError, exception_line
 from dvsot.events import EventBatch
 
 
@@ -31,7 +31,7 @@ class Dataset:
         try:
             self._file = h5py.File(self.path, "r")
         except (OSError, RuntimeError) as exc:
-            raise UserError(f"{self.path}: not a readable HDF5 file ({short(exc)})") from None
+            raise UserError(f"{self.path}: not a readable HDF5 file ({exception_line(exc, kind=False)})") from None
         try:
             self._validate()
         except UserError:
@@ -42,7 +42,7 @@ class Dataset:
             raise UserError(f"{self.path}: damaged dvsot file ({exc})") from None
         except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py: RuntimeError for broken metadata
             self._file.close()
-            raise UserError(f"{self.path}: damaged dvsot file ({short(exc)})") from None
+            raise UserError(f"{self.path}: damaged dvsot file ({exception_line(exc, kind=False)})") from None
 
     def _validate(self) -> None:
         f = self._file
@@ -130,7 +130,7 @@ class Dataset:
         try:
             return self._file[name][()]
         except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({short(exc)})") from None
+            raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({exception_line(exc, kind=False)})") from None
 
     def _index_at(self, t_us: int) -> int:
         """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
@@ -154,7 +154,7 @@ class Dataset:
             return self._columns[column][i0:i1]
         except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
             raise self._damaged(f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
-                                f"({short(exc)})") from None
+                                f"({exception_line(exc, kind=False)})") from None
 
     def _batch(self, i0: int, i1: int, t0_us: int, t1_us: int, source: str) -> EventBatch:
         """Events i0..i1-1, checked: sorted times in [t0_us, t1_us) (microseconds), pixels on the sensor, 0/1 flags."""

@@ -10,6 +10,7 @@ import numpy as np
 
 from dvsot import validate
 from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
+from dvsot.errors import exception_line
 
 _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"}
 
@@ -29,7 +30,7 @@ def check_layout(f: h5py.File) -> None:
         try:
             obj = f[name]
         except (KeyError, OSError) as exc:  # e.g. a dangling link: listed, but nothing behind it
-            raise Damaged(f"/{name} cannot be opened ({short(exc)})") from None
+            raise Damaged(f"/{name} cannot be opened ({exception_line(exc, kind=False)})") from None
         if not isinstance(obj, h5py.Dataset):
             raise Damaged(f"/{name} is a {type(obj).__name__.lower()}, not a dataset")
         if obj.dtype.kind not in kinds:
@@ -141,9 +142,4 @@ def columns_problem(columns: dict[str, np.ndarray], limits: dict[str, tuple[int,
             return f"/events/{name} holds {int(values[i])} at event {first + i}, {why}"
     return None
 
-
-
-def short(exc: BaseException) -> str:
-    """An exception's message on one line."""
-    return " ".join(str(exc).split()) or type(exc).__name__
 

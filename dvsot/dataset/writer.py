@@ -33,7 +33,7 @@ def _readlink(path: str) -> str | None:
 class DatasetWriter:
     """Streams events and boxes into a new dataset file; renames it into place only on success."""
 
-    def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = 10_000,
+    def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = validate.SEGMENT_US,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
                  checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
         if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
