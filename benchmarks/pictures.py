@@ -16,7 +16,7 @@ import numpy as np
 
 from benchmarks.metrics import FAILURE_IOU  # the protocol's failure threshold, drawn as a reference line
 from dvsot.names import plot_text  # sequence and tracker names are free text: no mathtext, one line
-from dvsot.validate import SEGMENT_US
+from dvsot.defaults import SEGMENT_US
 
 
 def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png: str | os.PathLike,

@@ -26,7 +26,7 @@ import numpy as np
 
 from dvsot.errors import UserError
 from dvsot.exchange import EventFile, read_event_file
-from dvsot.validate import SEGMENT_US
+from dvsot.defaults import SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from dvsot.validate import SEGMENT_US
+from dvsot.defaults import SEGMENT_US
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -15,6 +15,7 @@ from dvsot.background import OrderedWorker
 from dvsot.boxes import interpolate_boxes, match_annotations
 from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
 from dvsot.dataset.reader import Dataset
+from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
 from dvsot.events import EventBatch
 from dvsot.h5chunks import encode_chunk
@@ -33,7 +34,7 @@ def _readlink(path: str) -> str | None:
 class DatasetWriter:
     """Streams events and boxes into a new dataset file; renames it into place only on success."""
 
-    def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = validate.SEGMENT_US,
+    def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = SEGMENT_US,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
                  checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
         if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
