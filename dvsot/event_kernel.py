@@ -67,30 +67,99 @@ def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_ev
         return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)
     code = np.empty(bound, np.int64)  # pixel * 2 + polarity
     trel = np.empty(bound, np.int64)  # whole microseconds after t0
-    span_us = float(t1 - t0)
     ne = 0
     for j in range(n_cand):
         i = scratch[j]
-        rising, c, u0, u1, k_lo, k_hi = _levels(L1[i], last[i], base[i], off[i], cp[i], cn[i])
-        if k_hi < k_lo:
-            continue
-        # the reference moves to the last level crossed, also past crossings the refractory period drops
-        off[i] += k_hi * c if rising else -k_hi * c
-        ref[i] = base[i] + off[i]
-        per_unit = span_us / (u1 - u0)  # u1 > u0 here: k_hi >= k_lo > u0 / C + TIE_TOL
-        k = k_lo
-        while k <= k_hi:
-            dt = min(max((k * c - u0) * per_unit, 0.0), span_us)  # the tolerance may reach past t1
-            k += 1.0
-            if refractory_us > 0.0:
-                t_abs = t0 + dt
-                if t_abs - last_event[i] < refractory_us - REFRACTORY_SLACK_US:
-                    continue
-                last_event[i] = t_abs
-            code[ne] = 2 * i + (1 if rising else 0)
-            trel[ne] = np.int64(np.rint(dt))
-            ne += 1
+        ne = _emit(i, L1[i], last[i], base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne)
     return True, *_time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _emit(i, l1, l0, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne):
+    """Pixel i's crossings from l0 (t0) to l1 (t1) into code and trel from index ne; its reference moved. Returns the new ne."""
+    rising, c, u0, u1, k_lo, k_hi = _levels(l1, l0, base[i], off[i], cp[i], cn[i])
+    if k_hi < k_lo:
+        return ne
+    # the reference moves to the last level crossed, also past crossings the refractory period drops
+    off[i] += k_hi * c if rising else -k_hi * c
+    ref[i] = base[i] + off[i]
+    span_us = float(t1 - t0)
+    per_unit = span_us / (u1 - u0)  # u1 > u0 here: k_hi >= k_lo > u0 / C + TIE_TOL
+    k = k_lo
+    while k <= k_hi:
+        dt = min(max((k * c - u0) * per_unit, 0.0), span_us)  # the tolerance may reach past t1
+        k += 1.0
+        if refractory_us > 0.0:
+            t_abs = t0 + dt
+            if t_abs - last_event[i] < refractory_us - REFRACTORY_SLACK_US:
+                continue
+            last_event[i] = t_abs
+        code[ne] = 2 * i + (1 if rising else 0)
+        trel[ne] = np.int64(np.rint(dt))
+        ne += 1
+    return ne
+
+
+@numba.njit(cache=True, nogil=True)
+def coded_interval_events(codes, table, last_codes, base, off, ref, lo_code, hi_code, gate_on, gate_off, cp, cn,
+                          last_event, refractory_us, t0, t1, width, scratch):
+    """interval_events for frames given as integer codes into table (log intensity per code): x, y, t (us), p.
+
+    codes and last_codes are this and the previous frame (flat uint8 or uint16). A pixel can fire only if
+    its code lies outside (lo_code, hi_code), the codes whose log intensity is within the gates of its
+    reference (code_bounds); so the first pass reads a few bytes a pixel and no log intensity. The
+    bounds of the pixels that fire are updated here.
+    """
+    n_cand = 0
+    bound = 0
+    for i in range(codes.shape[0]):
+        ci = codes[i]
+        if (ci >= hi_code[i]) | (ci <= lo_code[i]):
+            _, _, _, _, k_lo, k_hi = _levels(table[ci], table[last_codes[i]], base[i], off[i], cp[i], cn[i])
+            if k_hi >= k_lo:
+                scratch[n_cand] = i
+                n_cand += 1
+                bound += int(k_hi - k_lo) + 1
+    code = np.empty(bound, np.int64)
+    trel = np.empty(bound, np.int64)
+    ne = 0
+    for j in range(n_cand):
+        i = scratch[j]
+        ne = _emit(i, table[codes[i]], table[last_codes[i]], base, off, ref, cp, cn, last_event, refractory_us, t0,
+                   t1, code, trel, ne)
+        lo_code[i], hi_code[i] = _code_bounds(table, ref[i], gate_on[i], gate_off[i])
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _code_bounds(table, r, g_on, g_off):
+    """(lo, hi): the last code with table[c] - r <= -g_off (-1 if none), the first with table[c] - r >= g_on (len if none).
+
+    The same comparisons as interval_events' first pass; table increases, so they split the codes in three.
+    """
+    a, b = 0, table.shape[0]
+    while a < b:
+        m = (a + b) >> 1
+        if table[m] - r >= g_on:
+            b = m
+        else:
+            a = m + 1
+    hi = a
+    a, b = 0, table.shape[0]
+    while a < b:
+        m = (a + b) >> 1
+        if table[m] - r <= -g_off:
+            a = m + 1
+        else:
+            b = m
+    return a - 1, hi
+
+
+@numba.njit(cache=True, nogil=True)
+def code_bounds(table, ref, gate_on, gate_off, lo_code, hi_code):
+    """Every pixel's (lo_code, hi_code) for reference ref (see coded_interval_events), in place."""
+    for i in range(ref.shape[0]):
+        lo_code[i], hi_code[i] = _code_bounds(table, ref[i], gate_on[i], gate_off[i])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -107,6 +107,18 @@ class EventBatch:
                           self.p[mask_or_index], sig)
 
 
+@dataclass(frozen=True)
+class CodedFrame:
+    """A frame as integer codes into a table: codes (height, width) uint8 or uint16; table[c] the log intensity of code c.
+
+    table is float64, one entry per value of the code type, increasing (dvsot.frames makes it for 8/16-bit
+    images). The simulator then reads a byte or two a pixel where a float frame costs eight.
+    """
+
+    codes: np.ndarray
+    table: np.ndarray
+
+
 class EventParams(BaseModel):
     """Event-generator parameters: contrast thresholds (log intensity), mismatch, refractory period (us), noise (Hz)."""
 
@@ -157,6 +169,11 @@ class EventSimulator:
         self._last_event = np.full(n, -np.inf)  # time of the last emitted event, float microseconds
         self._t_prev: int | None = None
         self._buf = np.empty(n, np.float64)
+        self._last_codes: np.ndarray | None = None  # the previous frame's codes (flat) when it was a CodedFrame
+        self._table: np.ndarray | None = None  # the table of _last_codes; _last is stale while _last_codes is set
+        self._bounds_table: np.ndarray | None = None  # the table _lo_code/_hi_code hold, None when stale
+        self._lo_code = self._hi_code = np.empty(0, np.int16)
+        self._checked_tables: list[np.ndarray] = []
 
     def _draw_thresholds(self) -> tuple[np.ndarray | float, np.ndarray | float]:
         p, n = self.params, self.width * self.height
@@ -172,6 +189,7 @@ class EventSimulator:
         """Use these C+ and C- (scalars or one per pixel); the kernel gets one float64 per pixel and the minima."""
         n = self.width * self.height
         self._cp, self._cn = cp, cn
+        self._bounds_table = None  # the code bounds follow the gates
         self._cp_px, self._cn_px = (c if isinstance(c, np.ndarray) else np.full(n, float(c)) for c in (cp, cn))
         self._gate_on, self._gate_off = ((c * (1 - GATE_MARGIN)).astype(np.float32) for c in (self._cp_px, self._cn_px))
 
@@ -208,13 +226,20 @@ class EventSimulator:
             raise UserError("frame contains NaN or infinite values")
         return out
 
-    def step(self, frame: np.ndarray, t_us: int, is_log: bool = False, copy: bool = True) -> EventBatch:
+    def step(self, frame: np.ndarray | CodedFrame, t_us: int, is_log: bool = False, copy: bool = True) -> EventBatch:
         """Events (time-sorted) between the previous frame and this one, at t_us microseconds.
+
+        frame is linear intensity, log intensity (is_log=True), or a CodedFrame (is_log is then ignored);
+        a CodedFrame gives the same events as its log intensities table[codes] would.
 
         With is_log=True and copy=False a float64 frame is kept, not copied, until the next step: the
         caller must not change it in between (dvsot.simulate_frames hands over fresh frames).
         """
         t_us = int(t_us)
+        if isinstance(frame, CodedFrame):
+            return self._step_coded(frame, t_us, copy)
+        if self._last_codes is not None:  # the previous frame was coded: the float kernel needs its log intensities
+            self._last, self._last_is_ours, self._last_codes = np.take(self._table, self._last_codes), True, None
         L1 = self._log_frame(frame, is_log, copy)
         if self._t_prev is None:
             self._base[:] = L1
@@ -236,11 +261,70 @@ class EventSimulator:
                                                float(p.refractory_us), t0, t1, self.width, self._scratch)
         if not finite:  # found before the kernel changed anything
             raise UserError("frame contains NaN or infinite values")
+        self._bounds_table = None  # references moved outside the coded kernel
         signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
         noise = self._noise(t0, t1)
         self._keep_last(L1)
         self._t_prev = t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+
+    def _step_coded(self, frame: CodedFrame, t_us: int, copy: bool) -> EventBatch:
+        """step() for a CodedFrame: the coded kernel, or the float one where it cannot serve (see below)."""
+        codes, table = self._codes(frame), frame.table
+        if self._t_prev is None:
+            L1 = np.take(table, codes)
+            self._base[:] = L1
+            self._ref[:] = L1
+            self._last[:] = L1
+            self._last_codes, self._table, self._t_prev = (codes.copy() if copy else codes), table, t_us
+            return EventBatch.empty()
+        if t_us <= self._t_prev:
+            raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
+        p = self.params
+        if (p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0)) or self._last_codes is None \
+                or table is not self._table:
+            # gates drawn anew every interval (the bounds would be recomputed for every pixel), or the previous
+            # frame not coded with this table: the same events from the float kernel
+            batch = self.step(np.take(table, codes).reshape(self.height, self.width), t_us, is_log=True, copy=False)
+            self._last_codes, self._table = (codes.copy() if copy else codes), table
+            return batch
+        t0, t1 = self._t_prev, t_us
+        self._check_noise(t0, t1)
+        from dvsot.event_kernel import code_bounds, coded_interval_events
+
+        if self._bounds_table is not table:
+            dtype = np.int16 if table.shape[0] <= 1 << 15 else np.int32
+            if self._lo_code.shape != codes.shape or self._lo_code.dtype != dtype:
+                self._lo_code, self._hi_code = np.empty(codes.shape, dtype), np.empty(codes.shape, dtype)
+            code_bounds(table, self._ref, self._gate_on, self._gate_off, self._lo_code, self._hi_code)
+            self._bounds_table = table
+        x, y, t, pol = coded_interval_events(codes, table, self._last_codes, self._base, self._off, self._ref,
+                                             self._lo_code, self._hi_code, self._gate_on, self._gate_off,
+                                             self._cp_px, self._cn_px, self._last_event, float(p.refractory_us),
+                                             t0, t1, self.width, self._scratch)
+        signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
+        noise = self._noise(t0, t1)
+        self._last_codes, self._t_prev = (codes.copy() if copy else codes), t1
+        return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+
+    def _codes(self, frame: CodedFrame) -> np.ndarray:
+        """The frame's codes, flat; the shape, the code type and (once per table) the table checked."""
+        a = np.asarray(frame.codes)
+        if a.shape != (self.height, self.width):
+            raise UserError(f"frame has shape {a.shape}, expected ({self.height}, {self.width})")
+        if a.dtype not in (np.uint8, np.uint16):
+            raise UserError(f"coded frame has dtype {a.dtype}, expected uint8 or uint16")
+        table = frame.table
+        if not any(table is t for t in self._checked_tables):
+            size = np.iinfo(a.dtype).max + 1
+            if not (isinstance(table, np.ndarray) and table.dtype == np.float64 and table.shape == (size,)):
+                raise UserError(f"coded frame's table must be {size} float64 values for {a.dtype} codes")
+            if not (np.isfinite(table).all() and np.all(np.diff(table) > 0)):
+                raise UserError("coded frame's table must be finite and increasing")
+            self._checked_tables = self._checked_tables[-3:] + [table]
+        elif a.dtype.itemsize != (1 if table.shape[0] == 256 else 2):
+            raise UserError(f"coded frame has dtype {a.dtype}, its table {table.shape[0]} entries")
+        return np.ascontiguousarray(a).reshape(-1)
 
     def _keep_last(self, L1: np.ndarray) -> None:
         """L1 becomes the previous sample; the simulator's own buffers are reused, a caller's array never written."""

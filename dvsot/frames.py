@@ -29,7 +29,7 @@ import numpy as np
 from dvsot.background import read_ahead
 from dvsot.errors import UserError
 from dvsot.validate import file_kind_problem
-from dvsot.events import log_intensity
+from dvsot.events import CodedFrame, log_intensity
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
@@ -113,15 +113,16 @@ class FrameSource:
         else:
             yield from self._video(ahead=workers > 0)
 
-    def log_frames(self, log_eps: float, workers: int = 2) -> Iterator[np.ndarray]:
+    def log_frames(self, log_eps: float, workers: int = 2, coded: bool = False) -> Iterator[np.ndarray | CodedFrame]:
         """Yield (height, width) float64 log intensities log(I + log_eps) of the frames, computed on decoding threads.
 
         Single-channel 8/16-bit images are looked up in a table of their 256/65536 values, which holds
-        exactly what dvsot.events.log_intensity computes from the linear frame; others are converted.
+        exactly what dvsot.events.log_intensity computes from the linear frame. With coded=True they come
+        as CodedFrames instead (the decoded image and that table: the simulator reads a byte or two a pixel).
         """
         if self.path.is_dir():
-            yield from read_ahead(lambda p: self._image(p, log_eps), _image_files(self.path), workers=max(1, workers),
-                                  ahead=2 * max(1, workers))
+            yield from read_ahead(lambda p: self._image(p, log_eps, coded), _image_files(self.path),
+                                  workers=max(1, workers), ahead=2 * max(1, workers))
             return
         for i, frame in enumerate(self.frames(workers)):
             try:
@@ -129,15 +130,20 @@ class FrameSource:
             except UserError as exc:
                 raise UserError(f"{self.path}: frame {i}: {exc}") from None
 
-    def _image(self, p: Path, log_eps: float | None = None) -> np.ndarray:
-        """One image file as a linear-luma frame (runs on a decoding thread: OpenCV releases the GIL)."""
+    def _image(self, p: Path, log_eps: float | None = None, coded: bool = False) -> np.ndarray | CodedFrame:
+        """One image file as a linear-luma frame, or as log intensities (runs on a decoding thread: OpenCV releases the GIL)."""
         img = imread(p)
         if img is None:
             raise UserError(f"{p}: cannot read image")
         if img.shape[:2] != (self.height, self.width):
             raise UserError(f"{p}: image is {img.shape[1]}x{img.shape[0]}, the first was {self.width}x{self.height}")
-        if log_eps is not None and img.ndim == 2 and img.dtype in (np.uint8, np.uint16) and not self.srgb:
-            return np.take(_log_table(img.dtype.str, log_eps), img)
+        if log_eps is not None and img.ndim == 2 and img.dtype in (np.uint8, np.uint16):
+            table = _log_table(img.dtype.str, log_eps, self.srgb)
+            if coded:
+                return CodedFrame(img, table)
+            if img.dtype == np.uint8:  # OpenCV's table lookup: 3x numpy's take, and it releases the GIL
+                return cv2.LUT(img, table.reshape(1, -1))
+            return np.take(table, img)
         frame = to_linear_luma(img, self.srgb and img.dtype != np.float32)
         if log_eps is None:
             return frame
@@ -166,10 +172,10 @@ class FrameSource:
 
 
 @lru_cache(maxsize=4)
-def _log_table(dtype: str, log_eps: float) -> np.ndarray:
+def _log_table(dtype: str, log_eps: float, srgb: bool = False) -> np.ndarray:
     """log(I + log_eps) of every value of an 8- or 16-bit single-channel image, as log_intensity computes it."""
     values = np.arange(np.iinfo(np.dtype(dtype)).max + 1, dtype=np.dtype(dtype)).reshape(1, -1)
-    return log_intensity(to_linear_luma(values), log_eps)
+    return log_intensity(to_linear_luma(values, srgb), log_eps)
 
 
 def _image_files(directory: Path) -> list[Path]:

@@ -185,9 +185,9 @@ def run(args: argparse.Namespace) -> int:
             bar.update(1)
             bar.set_postfix(events=events, refresh=False)
 
-        # log intensities computed on the decoding threads; the simulator takes them as they are
-        counts = simulate_frames(source.log_frames(params.log_eps), t_us, sim, writer, str(args.input), progress,
-                                 is_log=True)
+        # log intensities (or 8/16-bit images and their log table) from the decoding threads, taken as they are
+        counts = simulate_frames(source.log_frames(params.log_eps, coded=True), t_us, sim, writer, str(args.input),
+                                 progress, is_log=True)
         bar.close()
         if counts.frames != source.count:
             raise UserError(f"{args.input}: expected {source.count} frames, read {counts.frames}")
