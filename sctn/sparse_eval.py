@@ -5,9 +5,10 @@ and runs the whole network on it: almost all of that input is zeros. Without bia
 never receives current stays at V = 0 and never fires, so only what events reach needs computing:
 
 - input -> conv1: conv1's kernel equals its stride (4 x 4, stride 4), so each canvas pixel feeds one
-  conv1 cell. Each candidate's events (inside its box) set bits of a 32-bit mask per (cell, step),
-  one bit per (row, column, polarity) of the kernel; the mask also removes repeated events, as the
-  binary canvas does. Only the cells that got a bit run their C-LIF neurons.
+  conv1 cell. The segment's events are first merged per sensor pixel (bits 2 step + polarity: repeats
+  fall together, as on the binary canvas); each candidate's pixels (inside its box) set bits of a
+  32-bit mask per (cell, step), one bit per (row, column, polarity) of the kernel. Only the cells that
+  got a bit run their C-LIF neurons.
 - conv2, conv3: only cells whose window holds a spike of the layer below run; their current is the sum
   of the weight vectors of the spikes in the window (additions only).
 - fc1, fc2, out: the model's own layers on conv3's spikes, fc1 only on the (candidate, step) rows in
@@ -48,6 +49,8 @@ def exact_blocker(model: SCTN) -> str | None:
         return "conv1's kernel must equal its stride and hold at most 32 inputs (2 x k x k)"
     if max(cfg.channels) > 32:
         return "more than 32 channels in a convolution"
+    if cfg.steps > 31:
+        return "more than 31 time steps with events (a pixel's events are kept as 2 bits per step of an int64)"
     blocks = summation_blocks(model)
     if isinstance(blocks, str):
         return blocks
@@ -176,14 +179,14 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
         none = {name: np.zeros(0) for name in LAYER_NAMES}
         return torch.zeros(0, total, 2), {"spikes": none, "ac_ops": dict(none), "maps": maps} if record else None
     geom = np.ascontiguousarray(box_canvas(boxes, size))
-    ex, ey, ep, es, tile_start, tiles = _segment_events(events, t0_us, geom, steps, cfg.step_us)
+    ex, ey, occ, tile_start, tiles = _segment_events(events, t0_us, geom, steps, cfg.step_us)
     sizes = [size] + cfg.conv_sizes()
     c3 = cfg.channels[2]
     rows3 = np.empty((max(n * total, MIN_ROWS), c3 * sizes[3] ** 2), np.float32)  # conv3's rows that spike
     row_of = np.full(n * total, -1, np.int64)  # (candidate, step) -> its row of rows3
     counts = np.zeros((n, 4, 2), np.float64)  # per layer input .. conv3: spikes, ACs
     weights, consts, fans = _kernel_arrays(model)
-    used = conv_layers(ex, ey, ep, es, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
+    used = conv_layers(ex, ey, occ, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
                         *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *blocks[1:], *consts,
                         np.float32(model.neurons[0].theta), total, record, *fans, BITS, NBITS, rows3, row_of,
                        counts)
@@ -260,29 +263,39 @@ def _fc_layers(model: SCTN, rows3: np.ndarray, row_of: np.ndarray, used: int, to
 
 
 def _segment_events(events: EventBatch, t0_us: int, geom: np.ndarray, steps: int, step_us: int):
-    """The segment's events inside some box, grouped by sensor tile of TILE x TILE px: pixel centres x, y
-    (float32, as encode_boxes forms them), polarity, step (int64), the tiles' CSR starts and, per box, the
-    first and last tile column and row that can hold its events and the tile columns (N, 5)."""
+    """The segment's active pixels inside some box, grouped by sensor tile of TILE x TILE px: pixel centres x, y
+    (float32, as encode_boxes forms them), the pixel's events as bits 2 step + polarity (int64: repeats fall
+    together, as on the binary canvas), the tiles' CSR starts and, per box, the first and last tile column and
+    row that can hold its pixels and the tile columns (N, 5)."""
     step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us
     ex = events.x.astype(np.float32) + np.float32(0.5)
     ey = events.y.astype(np.float32) + np.float32(0.5)
     keep = ((step >= 0) & (step < steps) & (ex >= geom[:, 0].min(initial=np.inf)) & (ex < geom[:, 1].max(initial=0))
             & (ey >= geom[:, 2].min(initial=np.inf)) & (ey < geom[:, 3].max(initial=0)))
-    ix, iy = events.x[keep].astype(np.int64) // TILE, events.y[keep].astype(np.int64) // TILE
-    cols = int(ix.max(initial=0)) + 1
-    rows = int(iy.max(initial=0)) + 1
-    tile = iy * cols + ix
-    order = np.argsort(tile, kind="stable")
-    tile_start = np.searchsorted(tile[order], np.arange(rows * cols + 1))
+    x, y = events.x[keep].astype(np.int64), events.y[keep].astype(np.int64)
+    cols = int(x.max(initial=0)) // TILE + 1
+    rows = int(y.max(initial=0)) // TILE + 1
+    # one entry per pixel, sorted by tile then pixel: its (step, polarity) bits OR-ed together
+    key = (y // TILE * cols + x // TILE) * TILE * TILE + (y % TILE) * TILE + x % TILE
+    bit = np.left_shift(np.int64(1), step[keep] * 2 + events.p[keep].astype(np.int64))
+    order = np.argsort(key, kind="stable")
+    key, bit = key[order], bit[order]
+    first = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]])) if len(key) else np.zeros(0, np.int64)
+    occ = np.bitwise_or.reduceat(bit, first) if len(key) else np.zeros(0, np.int64)
+    key = key[first]
+    tile = key // (TILE * TILE)
+    px = (tile % cols) * TILE + key % TILE
+    py = (tile // cols) * TILE + key // TILE % TILE
+    tile_start = np.searchsorted(tile, np.arange(rows * cols + 1))
     # pixel x holds events with centre x + 0.5 in [left, right): tiles floor((left - 0.5) / TILE) ..
-    # floor((right - 0.5) / TILE), clipped (the kernel tests each event exactly)
+    # floor((right - 0.5) / TILE), clipped (the kernel tests each pixel exactly)
     edges = np.floor((geom[:, :4].astype(np.float64) - 0.5) / TILE).astype(np.int64)
     limit = np.array([cols, cols, rows, rows]) - 1
     tiles = np.stack([np.clip(edges[:, k], 0, limit[k]) for k in range(4)] + [np.full(len(geom), cols)], axis=1)
     empty = (edges[:, 1] < 0) | (edges[:, 3] < 0) | (edges[:, 0] > limit[0]) | (edges[:, 2] > limit[2])
     tiles[empty, 1] = tiles[empty, 0] - 1  # no tile at all
-    return (np.ascontiguousarray(ex[keep][order]), np.ascontiguousarray(ey[keep][order]),
-            np.ascontiguousarray(events.p[keep][order], np.int64), np.ascontiguousarray(step[keep][order]),
+    return (np.ascontiguousarray(px.astype(np.float32) + np.float32(0.5)),
+            np.ascontiguousarray(py.astype(np.float32) + np.float32(0.5)), np.ascontiguousarray(occ, np.int64),
             tile_start.astype(np.int64), np.ascontiguousarray(tiles))
 
 

@@ -184,13 +184,14 @@ def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st
 
 
 @numba.njit(cache=True)
-def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3, k1, k2, k3, w1, w2, w3, ch1, ch2,
+def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1, k2, k3, w1, w2, w3, ch1, ch2,
                 ch3, st2, st3, blk2, blk3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, bits, nbits, rows3,
                 row_of, counts) -> int:  # pragma: no cover - compiled
     """Input and the three spiking convolutions of every candidate (see the module docstring).
 
-    ex, ey, ep, es (E,): event pixel centres, polarity, step, grouped by sensor tile (tile_start: CSR
-    starts; tiles (N, 5): per box the first and last tile column and row to read, and the tile columns);
+    ex, ey, occ (E,): active pixels' centres and their events as bits 2 step + polarity, grouped by sensor
+    tile (tile_start: CSR starts; tiles (N, 5): per box the first and last tile column and row to read, and
+    the tile columns);
     geom (N, 7) from box_canvas; s1..s3 the conv maps' sizes, k1..k3 their kernels, ch1..ch3 their
     channels; w1, w2, w3 flat (k k C_in x C_out) in (kernel row, column, input channel; polarity for w1)
     x output channel order; blk2, blk3 the input-channel blocks of conv2's and conv3's sums (see _conv_cells);
@@ -220,6 +221,7 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
     fired = np.zeros(steps * width + 8, np.uint8)  # + 8: _spike_lists reads whole words
     state = np.zeros((3, width), np.float32)
     nbytes1 = (w1.shape[0] // ch1 + 7) // 8
+    steps_in = min(steps, 31)  # steps that can hold events (occ's bits); the tail steps stay empty
     used = 0  # rows of rows3 filled
     for i in range(geom.shape[0]):
         x0, x1, y0, y1, cx, cy, sc = geom[i, 0], geom[i, 1], geom[i, 2], geom[i, 3], geom[i, 4], geom[i, 5], geom[i, 6]
@@ -236,6 +238,7 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
                 px, py = int(u), int(v)
                 if px >= size or py >= size:
                     continue
+                o = occ[e]
                 if px < cover and py < cover:
                     cell = (py // k1) * s1 + px // k1
                     if slot1[cell] < 0:
@@ -243,12 +246,20 @@ def conv_layers(ex, ey, ep, es, tile_start, tiles, geom, half, size, s1, s2, s3,
                         cells1[n1] = cell
                         masks1[n1, :] = 0
                         n1 += 1
-                    masks1[slot1[cell], es[e]] |= 1 << (((py % k1) * k1 + px % k1) * 2 + ep[e])
+                    j = slot1[cell]
+                    shift = ((py % k1) * k1 + px % k1) * 2
+                    for t in range(steps_in):
+                        b = (o >> (2 * t)) & 3
+                        if b:
+                            masks1[j, t] |= b << shift
                 elif record:
-                    idx = ((es[e] * 2 + ep[e]) * size + py) * size + px
-                    if stamp[idx] != i + 1:
-                        stamp[idx] = i + 1
-                        counts[i, 0, 0] += 1  # fan-out 0: conv1 does not read it
+                    for t in range(steps_in):
+                        for p in range(2):
+                            if (o >> (2 * t + p)) & 1:
+                                idx = ((t * 2 + p) * size + py) * size + px
+                                if stamp[idx] != i + 1:  # two sensor pixels can meet on a scaled-down canvas
+                                    stamp[idx] = i + 1
+                                    counts[i, 0, 0] += 1  # fan-out 0: conv1 does not read it
         # conv1 on the cells that got events: a cell's pixels in (row, column, polarity) order per step
         for t in range(steps):
             cur[t * width:t * width + n1 * ch1] = 0

@@ -214,6 +214,7 @@ def test_models_it_cannot_reproduce_are_refused_and_run_densely():
     assert path.startswith("dense (conv2") and torch.equal(v, dense_candidate_voltages(net, events, 0, boxes))
     overlapping = _bias_free(SCTN(NetworkConfig(kernels=(5, 3, 3))))
     assert "kernel must equal its stride" in exact_blocker(overlapping)
+    assert "31 time steps" in exact_blocker(_bias_free(SCTN(NetworkConfig(steps=32))))  # a pixel's bits: 2 per step
 
 
 def test_tracker_tracks_the_same_boxes_as_with_the_dense_path(tmp_path, monkeypatch):
