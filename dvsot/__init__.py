@@ -1,7 +1,8 @@
 """dvsot: synthesise event-camera (DVS) single-object-tracking datasets and benchmark trackers on them.
 
 The Python API (README, "Use it from Python"): `load_scene` -> `generate` renders a scene into a dataset
-file; `EventSimulator` + `simulate_frames` turn frames you have into one; `Dataset` reads it. Each name
+file; `simulate_file` turns frames you have (images, video, .npy) into one, `EventSimulator` +
+`write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it. Each name
 is imported on first use, so `import dvsot` stays light (no torch, no bpy).
 """
 
@@ -14,6 +15,8 @@ _API = {
     "SceneConfig": "dvsot.config",
     "generate": "dvsot.generate",
     "simulate_frames": "dvsot.simulation",
+    "write_sequence": "dvsot.simulation",
+    "simulate_file": "dvsot.framesim",
     "EventSimulator": "dvsot.events",
     "EventParams": "dvsot.events",
     "EventBatch": "dvsot.events",

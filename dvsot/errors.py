@@ -2,8 +2,11 @@
 the one formatter of any exception as one line."""
 
 
-class UserError(Exception):
-    """Bad input from the user (a file, a field, a flag): the message is one line naming what and where."""
+class UserError(ValueError):
+    """Bad input from the user (a file, a field, a value): the message is one line naming what and where.
+
+    A ValueError, so that library callers catching bad values catch it too.
+    """
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))

@@ -14,14 +14,13 @@ import numpy as np
 from dvsot import __version__, interrupts
 from dvsot.boxes import box_from_mask
 from dvsot.config import SceneConfig
-from dvsot.dataset import DatasetWriter
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
 from dvsot.lazy import callable_module
 from dvsot.outputs import run_outputs
 from dvsot.sampling import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.shapes import mesh_for, sample_points
-from dvsot.simulation import simulate_frames
+from dvsot.simulation import write_sequence
 from dvsot.trajectory import pose_and_scale, pose_matrix, project
 
 
@@ -102,8 +101,6 @@ def _status(show: bool, text: str) -> None:
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
              keep_frames: str | Path | None = None) -> dict:
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary."""
-    from tqdm import tqdm
-
     from dvsot.blender import BlenderScene, blender_version
 
     start = time.perf_counter()
@@ -130,38 +127,29 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
         if keep_frames:
             check_keep_frames(keep_frames, "keep_frames")
             keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
-        with BlenderScene(cfg) as scene, DatasetWriter(out_path, W, H, int(round(cfg.segment_ms * 1000)), attrs) as w:
+        with BlenderScene(cfg) as scene:
             interrupts.check()
-            bar = tqdm(total=len(times), unit="frame", disable=not progress, desc=cfg.name)
+            amodal, visible = [], []
 
             def renders():
-                """Luma of each sample in turn; its boxes go to the file as it is rendered."""
+                """Luma of each sample in turn; its boxes are kept for the file."""
                 nonlocal render_s, first_s
                 for i, t in enumerate(times):
                     r0 = time.perf_counter()
-                    luma, amodal, visible = scene.render(float(t))
+                    luma, full, seen = scene.render(float(t))
                     render_s += time.perf_counter() - r0
                     interrupts.check()  # a signal during the render: stop here
                     if i == 0:
                         first_s = render_s
                     if keep:
                         np.save(keep / f"{i:06d}.npy", luma)
-                    w.append_boxes(t_us[i], box_from_mask(amodal), box_from_mask(visible))
+                    amodal.append(box_from_mask(full))
+                    visible.append(box_from_mask(seen))
                     yield luma
 
-            def shown(done: int, events: int) -> None:
-                bar.update(1)
-                bar.set_postfix_str(f"t={times[done - 1]:.3f}s events={events:,}", refresh=False)
-
-            try:
-                counts = simulate_frames(renders(), t_us, sim, w, cfg.name, shown)
-            except BaseException:
-                bar.leave = False  # the error line alone, no bar redrawn under it
-                raise
-            finally:
-                bar.close()
+            _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
+                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible), progress=progress)
             n_events, n_pos = counts.events, counts.positive
-            w.close(int(t_us[-1]) + 1)
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)
     return {"output": str(out_path), "name": cfg.name, "resolution": f"{W}x{H}", "duration_s": cfg.duration_s,

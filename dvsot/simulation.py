@@ -1,4 +1,4 @@
-"""Frames -> events -> dataset file: the loop `dvsot simulate` and `dvsot generate` share.
+"""Frames -> events -> dataset file: the loop `dvsot simulate` and `dvsot generate` share (write_sequence).
 
 Frames come from any iterable (a FrameSource's read-ahead decoder, or renders); the simulator runs in
 the calling thread and the writer compresses and writes chunks on its own thread, so decoding,
@@ -8,6 +8,7 @@ simulation and writing overlap.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
 import numpy as np
@@ -44,3 +45,41 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
         if progress is not None:
             progress(n, writer.num_events)
     return SimulationCounts(n, writer.num_events, n_pos)
+
+
+BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)]): box samples for DatasetWriter.append_boxes
+
+
+def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,
+                   attrs: dict, segment_us: int = 10_000, *, source: str = "frames", is_log: bool = False,
+                   boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
+                   desc: str | None = None) -> tuple[Path, SimulationCounts]:
+    """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.
+
+    The frames -> events -> file loop of `dvsot generate` and `dvsot simulate`. boxes() is called once
+    every frame is consumed, so a renderer may collect its boxes while it yields frames. The file is
+    renamed into place only when complete (DatasetWriter); on any error nothing is left behind.
+    """
+    from tqdm import tqdm
+
+    with DatasetWriter(path, sim.width, sim.height, segment_us, attrs) as writer:
+        bar = tqdm(total=len(t_us), unit="frame", disable=not progress, desc=desc or source)
+
+        def shown(done: int, events: int) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f"t={t_us[done - 1] / 1e6:.3f}s events={events:,}", refresh=False)
+
+        try:
+            counts = simulate_frames(frames, t_us, sim, writer, source, shown, is_log=is_log)
+        except BaseException:
+            bar.leave = False  # the error line alone, no bar redrawn under it
+            raise
+        finally:
+            bar.close()
+        if counts.frames != len(t_us):
+            raise UserError(f"{source}: expected {len(t_us)} frames, read {counts.frames}")
+        rows = boxes() if boxes is not None else None
+        if rows is not None:
+            writer.append_boxes(*rows)
+        out = writer.close(int(t_us[-1]) + 1)
+    return out, counts

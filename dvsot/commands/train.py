@@ -137,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     try:
         model, history = _trainer(args.model)(files, cfg, progress=not args.quiet)
+    except UserError:  # already names its file (a UserError is a ValueError too)
+        raise
     except ValueError as exc:
         raise UserError(f"{', '.join(map(str, args.data))}: {exc}") from None
     final = history["val"][-1] if history["val"] else {}
