@@ -40,6 +40,25 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
         return result
 
 
+def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None = None) -> dict[str, Path]:
+    """{sequence name: dataset file} of the files, directories or globs (split None: any); each must hold
+    ground truth and a name of its own (they name the tables' columns)."""
+    import numpy as np
+
+    from dvsot.dataset import Dataset, find_datasets
+    from dvsot.errors import UserError
+
+    out: dict[str, Path] = {}
+    for f in find_datasets(specs, split=split):
+        with Dataset(f) as ds:
+            if ds.num_segments == 0 or np.isnan(ds.segment_boxes()).any(axis=1).all():
+                raise UserError(f"{f}: sequence has no ground-truth boxes to track")
+            if ds.name in out:  # two files with one name would share (and overwrite) a table column
+                raise UserError(f"{f}: sequence '{ds.name}' is also in {out[ds.name]}; the tables need distinct names")
+            out[ds.name] = Path(f)
+    return out
+
+
 def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dict[str, dict] | None = None,
               jobs: int = 1, max_segments: int | None = None, protocol: str = "ar",
               tracker_modules: Sequence[str] = (), progress: bool = False,

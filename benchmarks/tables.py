@@ -1,6 +1,6 @@
 """Results tables in the layout of the paper's Table 2 (A and R per sequence, ARscore beneath, an "all" column).
 
-One summary feeds every format: terminal text, CSV (one row per tracker and sequence), JSON,
+One summary (`summarise`: a typed `Summary` of `Cell`s) feeds every format: terminal text, CSV (one row per tracker and sequence), JSON,
 Markdown and LaTeX, written side by side by `write_tables`.
 """
 
@@ -10,7 +10,10 @@ import csv
 import io
 import json
 import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Any, Iterator
 
 from benchmarks.metrics import ALL, pooled, scores
 from benchmarks.protocol import SequenceResult
@@ -18,18 +21,78 @@ from dvsot.names import latex_text, markdown_cell  # sequence and tracker names 
 
 
 
-def summarise(results: list[SequenceResult]) -> dict:
-    """{tracker: {sequence|'all': {A, R, ARscore, segments, failures, inits, segments_per_s, init_s, energy, error}}}.
+@dataclass(frozen=True)
+class Cell:
+    """One tracker on one sequence (or pooled over all of them): the paper's A, R, ARscore and the run's counts.
 
-    segments_per_s counts update time only; init_s is the time spent in initialisations (SCTN's fine-tuning).
+    segments_per_s counts update time only; init_s is the time spent in initialisations (SCTN's
+    fine-tuning); energy: the tracker's mean energy figures, if it reports them; error: why it failed.
     """
-    out: dict[str, dict[str, dict]] = {}
+
+    A: float
+    R: float
+    ARscore: float
+    segments: int
+    failures: int
+    inits: int
+    segments_per_s: float
+    init_s: float
+    energy: dict | None
+    error: str | None
+
+    def __getitem__(self, key: str) -> Any:
+        """cell["A"]: a cell reads as the mapping of its fields (the tables' and the JSON's names)."""
+        if key not in _CELL_FIELDS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The cell as a plain dict (its JSON)."""
+        return asdict(self)
+
+
+_CELL_FIELDS = frozenset(f.name for f in fields(Cell))
+
+
+@dataclass(frozen=True)
+class Summary(Mapping):
+    """Benchmark results by tracker, then by sequence and the pooled column 'all': summary["sctn"]["all"].A."""
+
+    cells: dict[str, dict[str, Cell]]
+
+    def __getitem__(self, tracker: str) -> dict[str, Cell]:
+        return self.cells[tracker]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.cells)
+
+    def __len__(self) -> int:
+        return len(self.cells)
+
+    @property
+    def trackers(self) -> list[str]:
+        """The trackers, in the order they were run."""
+        return list(self.cells)
+
+    @property
+    def sequences(self) -> list[str]:
+        """The sequences in order of first appearance, then 'all'."""
+        return _sequences(self)
+
+    def to_dict(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """{tracker: {sequence: {field: value}}} as plain dicts (its JSON, with NaN kept)."""
+        return {t: {s: c.to_dict() for s, c in per.items()} for t, per in self.cells.items()}
+
+
+def summarise(results: list[SequenceResult]) -> Summary:
+    """Each tracker's Cell on each sequence and pooled over the sequences it did not fail on ('all')."""
+    out: dict[str, dict[str, Cell]] = {}
     for res in results:
         s = scores(res.iou)
-        out.setdefault(res.tracker, {})[res.sequence] = {
-            "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore, "segments": s.segments,
-            "failures": s.failures, "inits": len(res.init_segments), "segments_per_s": res.segments_per_s,
-            "init_s": res.init_seconds, "energy": res.energy, "error": res.error}
+        out.setdefault(res.tracker, {})[res.sequence] = Cell(
+            A=s.accuracy, R=s.robustness, ARscore=s.arscore, segments=s.segments, failures=s.failures,
+            inits=len(res.init_segments), segments_per_s=res.segments_per_s, init_s=res.init_seconds,
+            energy=res.energy, error=res.error)
     for tracker, per_seq in out.items():
         ok = [r for r in results if r.tracker == tracker and r.error is None]
         s = pooled([r.iou for r in ok])
@@ -40,14 +103,15 @@ def summarise(results: list[SequenceResult]) -> dict:
         if energies:
             keys = set.intersection(*(set(e) for e in energies))
             energy = {k: sum(e[k] for e in energies) / len(energies) for k in sorted(keys)}
-        per_seq[ALL] = {"A": s.accuracy, "R": s.robustness, "ARscore": s.arscore, "segments": s.segments,
-                        "failures": s.failures, "inits": sum(len(r.init_segments) for r in ok),
-                        "segments_per_s": tracked / seconds if seconds > 0 else float("nan"),
-                        "init_s": sum(r.init_seconds for r in ok), "energy": energy, "error": None if ok else "all sequences failed"}
-    return out
+        per_seq[ALL] = Cell(A=s.accuracy, R=s.robustness, ARscore=s.arscore, segments=s.segments,
+                            failures=s.failures, inits=sum(len(r.init_segments) for r in ok),
+                            segments_per_s=tracked / seconds if seconds > 0 else float("nan"),
+                            init_s=sum(r.init_seconds for r in ok), energy=energy,
+                            error=None if ok else "all sequences failed")
+    return Summary(out)
 
 
-def _sequences(summary: dict) -> list[str]:
+def _sequences(summary: Mapping) -> list[str]:
     seqs: list[str] = []
     for per_seq in summary.values():
         seqs += [s for s in per_seq if s != ALL and s not in seqs]
@@ -58,7 +122,7 @@ def _f(v: float | None) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.3f}"
 
 
-def terminal(summary: dict) -> str:
+def terminal(summary: Mapping) -> str:
     """A fixed-width table: per tracker an 'A R' row and an ARscore row, plus speed and initialisation time."""
     seqs = _sequences(summary)
     name_w = max([7] + [len(markdown_cell(t)) for t in summary])
@@ -85,7 +149,7 @@ def terminal(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def to_csv(summary: dict) -> str:
+def to_csv(summary: Mapping) -> str:
     """One row per tracker and sequence (including 'all')."""
     buf = io.StringIO()
     fields = ["tracker", "sequence", "A", "R", "ARscore", "segments", "failures", "inits", "segments_per_s",
@@ -106,9 +170,11 @@ def to_csv(summary: dict) -> str:
     return buf.getvalue()
 
 
-def to_json(summary: dict) -> str:
+def to_json(summary: Mapping) -> str:
     """The summary as JSON (NaN written as null)."""
     def clean(v):
+        if isinstance(v, (Summary, Cell)):
+            v = v.to_dict()
         if isinstance(v, float) and math.isnan(v):
             return None
         if isinstance(v, dict):
@@ -117,7 +183,7 @@ def to_json(summary: dict) -> str:
     return json.dumps(clean(summary), indent=2)
 
 
-def to_markdown(summary: dict) -> str:
+def to_markdown(summary: Mapping) -> str:
     """A Markdown table: each cell 'A / R / **ARscore**'."""
     seqs = _sequences(summary)
     lines = ["| tracker | " + " | ".join(map(markdown_cell, seqs)) + " | seg/s | init s |", "|---|" + "---|" * (len(seqs) + 2)]
@@ -133,7 +199,7 @@ def to_markdown(summary: dict) -> str:
                                "update time; init s: seconds spent initialising (SCTN fine-tunes on the first segment).\n")
 
 
-def to_latex(summary: dict) -> str:
+def to_latex(summary: Mapping) -> str:
     """A LaTeX tabular in the paper's layout: A and R side by side, ARscore centred beneath."""
     seqs = _sequences(summary)
     esc = latex_text
@@ -170,7 +236,7 @@ TABLE_FILES = {"txt": "table.txt", "csv": "results.csv", "json": "results.json",
                "tex": "results.tex"}
 
 
-def write_tables(summary: dict, out_dir: str | Path) -> dict[str, Path]:
+def write_tables(summary: Mapping, out_dir: str | Path) -> dict[str, Path]:
     """Write results.{csv,json,md,tex} and table.txt into out_dir, each atomically; returns the paths by format."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -81,3 +81,6 @@ def test_the_readme_python_block_runs_as_written(tmp_path):
     m = re.fullmatch(r"rct quickstart A=(\S+) R=(\S+) ARscore=(\S+)", lines[1])
     assert m and all(0.0 <= float(v) <= 1.0 for v in m.groups()), lines
     assert (tmp_path / "quickstart-api.h5").is_file()
+    report = tmp_path / "bench-api"
+    assert {"results.json", "table.txt", "run.json"} <= {p.name for p in report.iterdir()}
+    assert (report / "rct").is_dir()

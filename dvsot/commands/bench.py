@@ -23,6 +23,9 @@ Outputs are written only when every run has finished, as temp files renamed into
 (then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
 or bad input never leaves a table half-written, nor new tables beside old pictures.
 
+The command checks its flags and calls the library: benchmarks.benchmark (the runs),
+benchmarks.summarise, benchmarks.energy_table and benchmarks.write_report (the outputs).
+
 Exit status:
   0  every tracker ran on every sequence; tables written.
   1  a tracker raised on some sequence (a runtime failure): the tables are still written, with that
@@ -40,7 +43,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 DEFAULT_DATA = "data/dvsot21"
-MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.outputs)
 CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
 
 
@@ -110,10 +112,8 @@ def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
 
 
 def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
-    """{sequence name: dataset file} to benchmark; each must hold ground truth and a name of its own."""
-    import numpy as np
-
-    from dvsot.dataset import Dataset, find_datasets
+    """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), the default data if no --data."""
+    from benchmarks.runner import find_sequences
     from dvsot.errors import UserError
 
     if specs is None:
@@ -121,47 +121,7 @@ def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
             raise UserError(f"{DEFAULT_DATA}: no default data; make it with "
                             f"`dvsot generate blender_scenes/*.yaml --out-dir {DEFAULT_DATA}` or pass --data")
         specs = [DEFAULT_DATA]
-    out: dict[str, Path] = {}
-    for f in find_datasets(specs, split=None if split == "any" else split):
-        with Dataset(f) as ds:
-            if ds.num_segments == 0 or np.isnan(ds.segment_boxes()).any(axis=1).all():
-                raise UserError(f"{f}: sequence has no ground-truth boxes to track")
-            if ds.name in out:  # two files with one name would share (and overwrite) a table column
-                raise UserError(f"{f}: sequence '{ds.name}' is also in {out[ds.name]}; the tables need distinct names")
-            out[ds.name] = Path(f)
-    return out
-
-
-def _error_text(exc: BaseException) -> str:
-    """One line for an exception from pydantic, torch or elsewhere (their messages span several lines)."""
-    from pydantic import ValidationError
-
-    if isinstance(exc, ValidationError):
-        err = exc.errors()[0]
-        loc = ".".join(str(p) for p in err["loc"])
-        msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
-        return f"field '{loc}': {msg}" if loc else msg
-    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
-    if len(lines) > 1 and lines[0].endswith(":"):
-        lines = lines[1:]  # torch: "Error(s) in loading state_dict for SCTN:" then the actual problem
-    return f"{type(exc).__name__}: {lines[0] if lines else repr(exc)}"
-
-
-def load_sctn_checkpoint(path: str | None):
-    """The SCTN model of a checkpoint, built with its state dict; any problem is a UserError naming the file."""
-    from dvsot.errors import UserError
-    from sctn.checkpoint import default_checkpoint_path, load_checkpoint
-
-    try:
-        return load_checkpoint(path)[0]
-    except UserError:
-        raise
-    except Exception as exc:  # a loadable file whose config or tensors do not fit the network
-        where = path if path is not None else default_checkpoint_path()
-        detail = _error_text(exc)
-        if detail.startswith("field "):
-            detail = "config " + detail  # NetworkConfig rejected the checkpoint's config
-        raise UserError(f"{where}: not a usable SCTN checkpoint ({detail})") from None
+    return find_sequences(specs, None if split == "any" else split)
 
 
 def _option_spec(tracker: str, key: str | None, specs: list[str]) -> str:
@@ -190,7 +150,9 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
     """The one-line UserError for a tracker that its --option values did not build."""
     from dvsot.errors import UserError
 
-    detail = _error_text(exc)
+    from benchmarks.models import error_text
+
+    detail = error_text(exc)
     if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
         return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
     key = _option_key(exc, options)
@@ -201,23 +163,6 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
         elif "takes no arguments" in detail:
             detail = f"tracker '{name}' takes no options"
     return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
-
-
-def energy_ann_models(trackers: list[str], options: dict[str, dict]) -> tuple[dict, tuple[str, ...]]:
-    """The twin and SiamFC networks for the energy table's ANN rows: the run's checkpoints, else the shipped ones;
-    a row without a checkpoint is left out with a note saying so."""
-    from benchmarks.siamfc.model import default_siamfc_path, load_siamfc
-    from sctn.ann import default_twin_path, load_twin
-
-    models, notes = {}, []
-    for key, name, load, shipped in (("twin", "sctn_ann", load_twin, default_twin_path),
-                                     ("siamfc", "siamfc", load_siamfc, default_siamfc_path)):
-        path = options.get(name, {}).get("checkpoint")
-        if name in trackers or path is not None or shipped().is_file():
-            models[key] = load(path)[0]
-        else:
-            notes.append(f"({name}: no checkpoint at {shipped()}, its row is left out)")
-    return models, tuple(notes)
 
 
 def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
@@ -234,34 +179,21 @@ def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[st
             raise _option_error(name, options.get(name, {}), exc, specs) from None
 
 
+_WHO_ASKS = {"tables": "--out", "manifest": "--out (the run's manifest)", "plots": "--plots", "video": "--video",
+             "energy": "--out (energy table)"}  # benchmarks.report_files' kinds, as the flags that ask for them
+
+
 def _output_names(args: argparse.Namespace, energy: bool) -> dict[str, str]:
     """{file name in --out: the flag that asks for it}."""
-    from benchmarks.tables import TABLE_FILES
+    from benchmarks.report import report_files
 
-    ope = ["ope.json", "ope.md", "success_plot.png", "precision_plot.png"]
-    names = {n: "--out" for n in (ope if args.protocol == "ope" else TABLE_FILES.values())}
-    names[MANIFEST] = "--out (the run's manifest)"
-    if args.plots:
-        names["iou_over_time.png"] = "--plots"
-    for seq in args.video:
-        names[video_name(seq)] = "--video"
-    if energy:
-        names["energy.json"] = names["firing_rate.png"] = "--out (energy table)"
-    return names
-
-
-VIDEO_SEGMENTS = 300  # frames of a --video preview, one per segment
-
-
-def video_name(sequence: str) -> str:
-    """The file in --out for `--video sequence`: the name made safe as a file name (no '/', '..', control chars)."""
-    from dvsot.names import file_stem
-
-    return file_stem(sequence) + ".gif"
+    names = report_files(args.protocol, args.plots, args.video, energy)
+    return {name: _WHO_ASKS[kind] for name, kind in names.items()}
 
 
 def check_video(sequence: str, path: Path) -> None:
     """UserError now if the preview of a sequence would hold more frames in memory than dvsot.validate allows."""
+    from benchmarks.report import VIDEO_SEGMENTS
     from dvsot.dataset import Dataset
     from dvsot.errors import UserError
     from dvsot.validate import preview_problem
@@ -287,6 +219,7 @@ def plan(args: argparse.Namespace) -> Plan:
     import os
     import time
 
+    from benchmarks.models import energy_ann_models, load_sctn_checkpoint
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
     from dvsot.names import file_stem
@@ -347,54 +280,9 @@ def track(p: Plan, args: argparse.Namespace) -> list:
                      progress=not args.quiet, scheduler=args.scheduler)
 
 
-def write_outputs(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
-    """Write the tables, pictures, videos and energy table into --out, all together (and a manifest); paths by kind."""
-    from dvsot.outputs import run_outputs
-
-    with run_outputs(p.out_dir / MANIFEST) as run:  # all files of the run renamed into place together, or none
-        paths = _write_all(p, args, summary, results, energy)
-    paths["manifest"] = run.manifest
-    return paths
-
-
-def _write_all(p: Plan, args: argparse.Namespace, summary: dict, results: list, energy: dict | None) -> dict:
-    import json
-
-    from benchmarks.results import write_sequence_files
-    from benchmarks.tables import write_tables, write_text_atomic
-
-    if args.protocol == "ope":
-        from benchmarks.ope import write_ope
-
-        paths = {f"ope:{x.name}": x for x in write_ope(summary, p.out_dir)}
-    else:
-        paths = write_tables(summary, p.out_dir)
-    files = write_sequence_files(results, p.out_dir, vot=args.protocol != "ope")
-    if files:
-        paths["per-sequence"] = f"{p.out_dir}/<tracker>/ ({len(files)} files)"
-    if args.plots:
-        from benchmarks.pictures import plot_iou_over_time
-
-        per: dict = {}
-        for r in results:
-            per.setdefault(r.tracker, {})[r.sequence] = r.iou
-        paths["png"] = plot_iou_over_time(per, p.out_dir / "iou_over_time.png")
-    for seq in args.video:
-        from dvsot.preview import write_preview
-
-        chosen = {r.tracker: r.predictions for r in results if r.sequence == seq}
-        paths[f"gif:{seq}"] = write_preview(p.sequences[seq], p.out_dir / video_name(seq), chosen,
-                                            max_segments=VIDEO_SEGMENTS)
-    if energy is not None:
-        from benchmarks.energy_table import plot_firing_rates
-
-        paths["energy"] = write_text_atomic(p.out_dir / "energy.json", json.dumps(energy, indent=2))
-        paths["firing"] = plot_firing_rates(energy["firing"], p.out_dir / "firing_rate.png")
-    return paths
-
-
 def run(args: argparse.Namespace) -> int:
     """Check everything, run every tracker on every sequence, then print and write the tables (exit 1 on failures)."""
+    from benchmarks.report import write_report
     from benchmarks.tables import summarise, terminal
 
     p = plan(args)
@@ -416,7 +304,8 @@ def run(args: argparse.Namespace) -> int:
         from benchmarks.energy_table import format_energy_table
 
         print(format_energy_table(energy))
-    paths = write_outputs(p, args, summary, results, energy)
+    paths = write_report(p.out_dir, summary, results, protocol=args.protocol, plots=args.plots,
+                         videos={seq: p.sequences[seq] for seq in args.video}, energy=energy)
     print("written: " + ", ".join(str(x) for x in paths.values()))
     failed = [r for r in results if r.error]
     for r in failed:
