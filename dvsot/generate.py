@@ -148,7 +148,8 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
                     yield luma
 
             _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
-                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible), progress=progress)
+                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible), progress=progress,
+                                       bar_after_error=False)  # the error line alone, no bar redrawn under it
             n_events, n_pos = counts.events, counts.positive
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)

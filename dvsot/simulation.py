@@ -53,12 +53,13 @@ BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)]): box samples 
 def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,
                    attrs: dict, segment_us: int = 10_000, *, source: str = "frames", is_log: bool = False,
                    boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
-                   desc: str | None = None) -> tuple[Path, SimulationCounts]:
+                   desc: str | None = None, bar_after_error: bool = True) -> tuple[Path, SimulationCounts]:
     """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.
 
     The frames -> events -> file loop of `dvsot generate` and `dvsot simulate`. boxes() is called once
     every frame is consumed, so a renderer may collect its boxes while it yields frames. The file is
-    renamed into place only when complete (DatasetWriter); on any error nothing is left behind.
+    renamed into place only when complete (DatasetWriter); on any error nothing is left behind, and the
+    progress bar stays on screen unless bar_after_error is False (then the error line stands alone).
     """
     from tqdm import tqdm
 
@@ -72,7 +73,7 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
         try:
             counts = simulate_frames(frames, t_us, sim, writer, source, shown, is_log=is_log)
         except BaseException:
-            bar.leave = False  # the error line alone, no bar redrawn under it
+            bar.leave = bar_after_error
             raise
         finally:
             bar.close()
