@@ -2,8 +2,10 @@
 
 Each scene is rendered by `render_task` in a worker process, one at a time per process (Blender is
 process-global), with `render.threads` (when the scene leaves it at 0, all cores) set to the worker's
-share of its machine's cores. Results are collected one by one: a failure is recorded in the manifest
-with its one-line error and the scene is resubmitted, preferring another worker, up to `retries` times.
+share of its machine's cores. Every worker first renders a 16x12 scene (`warm_up`: the bpy import, Cycles'
+first render, the event kernels), so a scene's task time is its own. Results are collected one by one
+(dvsot.cluster.run_tasks): a failure is recorded in the manifest with its one-line error and the scene is
+resubmitted, preferring another worker, up to `retries` times.
 The manifest (JSON: one record per scene with variant, seed, file, drawn values, status, attempts) is
 rewritten atomically after every result.
 """
@@ -19,8 +21,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from dvsot.errors import UserError, exception_line
+from dvsot.cluster import Cluster, Failure, host_workers, map_tasks, parse_scheduler, run_tasks, worker_address
+from dvsot.errors import exception_line
 from dvsot.outputs import replacing
+
+__all__ = ["SceneTask", "Manifest", "render_task", "warm_up", "run_scenes", "output_is_done", "summary_line",
+           "record_dict", "map_tasks", "parse_scheduler"]  # the last two: dvsot.cluster's, kept here
 
 _RENDER_LOCK = threading.Lock()  # one Blender scene per process, whatever the worker's thread count
 
@@ -37,20 +43,6 @@ class SceneTask:
     overrides: dict = field(default_factory=dict)
     preview: bool = False
     record: dict = field(default_factory=dict)  # manifest fields known up front (variant, seed, drawn)
-
-
-def parse_scheduler(spec: str) -> tuple[str, int | str]:
-    """('local', N) for local:N, ('address', spec) for tcp://HOST:PORT (or tls://, ws://, wss://); UserError else."""
-    if spec.startswith("local:"):
-        n = spec.removeprefix("local:")
-        if not n.isdigit() or not 1 <= int(n) <= 256:
-            raise UserError(f"--scheduler local:N needs N, a number of worker processes in 1..256, got {spec!r}")
-        return "local", int(n)
-    scheme, _, rest = spec.partition("://")
-    host, _, port = rest.rpartition(":")
-    if scheme not in ("tcp", "tls", "ws", "wss") or not host or not port.isdigit():
-        raise UserError(f"--scheduler must be local:N or tcp://HOST:PORT, got {spec!r}")
-    return "address", spec
 
 
 def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
@@ -82,8 +74,8 @@ def _real_bpy_first() -> None:
 
 def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> dict:
     """Render one scene into its dataset file (in a worker): its summary, or {"error": one line} on any failure."""
-    t_task = time.perf_counter()
-    worker = _worker_address()
+    t_task, cpu_task = time.perf_counter(), time.process_time()
+    worker = worker_address()
     try:
         with _RENDER_LOCK:
             _real_bpy_first()
@@ -109,6 +101,9 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
                     write_preview(run.staged(task.output), gif, max_segments=PREVIEW_SEGMENTS)
                     summary["preview"] = str(gif)
             summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
+            # CPU seconds of the whole worker process (every render thread) during the task: what the scene cost
+            # whatever else ran on the machine
+            summary["cpu_s"] = round(time.process_time() - cpu_task, 3)
             summary["render_threads"] = cfg.render.threads
             summary["warnings"] = warnings
     except Exception as exc:  # returned, not raised: the head records it and retries (no traceback in worker logs)
@@ -117,13 +112,66 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
     return summary
 
 
-def _worker_address() -> str:
-    try:
-        from distributed import get_worker
+_WARM = False  # this process has rendered the warm-up scene
+_WARM_SCENE = """name: warm_up
+duration_s: 0.01
+sensor: {width: 16, height: 12, focal_mm: 35}
+camera: {keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]}
+target:
+  shape: cube
+  size_m: 1.5
+  trajectory: {interpolation: linear, keyframes: [{t: 0, location: [-1, 0, 0]}, {t: 0.01, location: [1, 0, 0]}]}
+background: {material: {texture: {type: noise, scale: 10}}}
+render: {threads: 1}
+sampling: {min_rate_hz: 200}
+"""
 
-        return get_worker().address
-    except (ImportError, ValueError):
-        return f"pid {os.getpid()}"
+
+def warm_up() -> dict:
+    """Pay a worker process's one-time costs on a 16x12 scene: {"warm_s": seconds, "worker"} or {"error", "worker"}.
+
+    The bpy import, Cycles' first render, h5py and the event kernels' load (numba's cache) cost seconds once per
+    process; a run pays them before its first submit, so each scene's task_s and cpu_s are its own.
+    """
+    import tempfile
+
+    global _WARM
+    if _WARM:
+        return {"warm_s": 0.0, "worker": worker_address()}
+    t0 = time.perf_counter()
+    try:
+        with _RENDER_LOCK, tempfile.TemporaryDirectory(prefix="dvsot-warm-up-") as tmp:
+            _real_bpy_first()
+            from dvsot.config import parse_scene
+            from dvsot.generate import generate
+            from dvsot.scene_checks import visibility_warnings
+
+            cfg = parse_scene(_WARM_SCENE, "warm-up scene", Path(tmp))
+            visibility_warnings(cfg)
+            generate(cfg, Path(tmp) / "warm_up.h5", _WARM_SCENE, progress=False)
+    except Exception as exc:  # a worker that cannot render says so in each scene's own error
+        return {"error": exception_line(exc, 300), "worker": worker_address()}
+    _WARM = True
+    return {"warm_s": round(time.perf_counter() - t0, 3), "worker": worker_address()}
+
+
+def warm_workers(client, timeout_s: float = 300.0) -> list[dict]:
+    """warm_up() once on every worker the scheduler knows now (pinned to each), waiting at most timeout_s.
+
+    Workers that join later pay these costs in their first scene.
+    """
+    from distributed import wait
+
+    futures = [client.submit(warm_up, pure=False, key=f"warm-up-{k}", workers=[w], allow_other_workers=False)
+               for k, w in enumerate(client.scheduler_info(n_workers=-1)["workers"])]
+    try:
+        wait(futures, timeout=timeout_s)
+    except TimeoutError:
+        pass  # a slow worker goes on warming; its scenes wait for it
+    out = [f.result() if f.status == "finished" else {"error": f"warm-up {f.status}"} for f in futures]
+    for f in futures:
+        f.release()
+    return out
 
 
 def output_is_done(task: SceneTask) -> bool:
@@ -145,7 +193,7 @@ class Manifest:
 
     def __init__(self, path: Path, tasks: list[SceneTask]) -> None:
         self.path = path
-        self.timing: dict = {}  # seconds: cluster start, submit -> last result
+        self.timing: dict = {}  # seconds: cluster start, workers' warm-up, submit -> last result
         self.records = [{"name": t.name, **t.record, "file": str(Path(t.output)), "status": "pending",
                          "attempts": [], "error": None} for t in tasks]
 
@@ -158,7 +206,11 @@ class Manifest:
 
 def run_scenes(tasks: list[SceneTask], manifest_path: Path, scheduler: str | None = None, retries: int = 0,
                resume: bool = False, report: Callable[[dict], None] | None = None) -> Manifest:
-    """Render every task (this process when scheduler is None), recording each result; the manifest at the end."""
+    """Render every task (this process when scheduler is None), recording each result; the manifest at the end.
+
+    On a cluster the timing holds start_s (the client and any LocalCluster), warm_s (warm_workers) and run_s
+    (first submit to last result).
+    """
     manifest = Manifest(manifest_path, tasks)
     todo = []
     for i, task in enumerate(tasks):
@@ -173,9 +225,11 @@ def run_scenes(tasks: list[SceneTask], manifest_path: Path, scheduler: str | Non
     if todo and scheduler is None:
         _run_here(tasks, todo, manifest, retries, report)
     elif todo:
-        kind, arg = parse_scheduler(scheduler)
-        with _client(kind, arg) as client:
+        with Cluster(scheduler) as client:
             manifest.timing["start_s"] = round(time.perf_counter() - t0, 3)
+            t0 = time.perf_counter()
+            warm_workers(client)
+            manifest.timing["warm_s"] = round(time.perf_counter() - t0, 3)
             t0 = time.perf_counter()
             _run_dask(client, tasks, todo, manifest, retries, report)
     manifest.timing["run_s"] = round(time.perf_counter() - t0, 3)
@@ -183,24 +237,33 @@ def run_scenes(tasks: list[SceneTask], manifest_path: Path, scheduler: str | Non
     return manifest
 
 
-def _ok(outcome: dict | BaseException) -> bool:
+def _ok(outcome: dict | Failure) -> bool:
     return isinstance(outcome, dict) and "error" not in outcome
 
 
-def _record(manifest: Manifest, i: int, outcome: dict | BaseException, final: bool) -> dict:
+def _record(manifest: Manifest, i: int, outcome: dict | Failure, final: bool) -> dict:
     rec = manifest.records[i]
     if _ok(outcome):
         rec["attempts"].append({"worker": outcome.get("worker"), "error": None, "wall_s": outcome.get("wall_s"),
-                                "task_s": outcome.get("task_s"), "render_threads": outcome.get("render_threads")})
+                                "task_s": outcome.get("task_s"), "cpu_s": outcome.get("cpu_s"),
+                                "render_threads": outcome.get("render_threads")})
         rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"),
                    warnings=outcome.get("warnings") or [])
     else:
-        err = outcome["error"] if isinstance(outcome, dict) else exception_line(outcome, 300)
-        worker = outcome["worker"] if isinstance(outcome, dict) else None
-        rec["attempts"].append({"worker": worker, "error": err})
-        rec.update(status="failed" if final else "retrying", error=err)
+        failure = _failure(outcome)
+        rec["attempts"].append({"worker": failure.worker, "error": failure.error})
+        rec.update(status="failed" if final else "retrying", error=failure.error)
     manifest.write()
     return rec
+
+
+def _failure(outcome: Any) -> Failure | None:
+    """render_task's {"error": ...} (or a Failure from dvsot.cluster) as a Failure; None for a summary."""
+    if isinstance(outcome, Failure):
+        return outcome
+    if isinstance(outcome, dict) and "error" in outcome:
+        return Failure(outcome["error"], outcome.get("worker"))
+    return None if isinstance(outcome, dict) else Failure(f"unexpected task result {type(outcome).__name__}")
 
 
 def _run_here(tasks, todo, manifest, retries, report) -> None:
@@ -213,107 +276,19 @@ def _run_here(tasks, todo, manifest, retries, report) -> None:
                 break
 
 
-class _client:
-    """A distributed Client on a new LocalCluster of single-threaded worker processes, or on a running scheduler."""
-
-    def __init__(self, kind: str, arg: int | str) -> None:
-        self.kind, self.arg, self.cluster, self.client = kind, arg, None, None
-
-    def __enter__(self):
-        import logging
-
-        from distributed import Client, LocalCluster
-
-        if self.kind == "local":
-            try:
-                self.cluster = LocalCluster(n_workers=self.arg, threads_per_worker=1, processes=True,
-                                            dashboard_address=None,
-                                            silence_logs=logging.CRITICAL)  # failures reach the manifest, one line each
-            except (RuntimeError, OSError, TimeoutError) as exc:
-                from dvsot.errors import RunError
-
-                raise RunError(f"--scheduler local:{self.arg}: the worker processes did not start "
-                               f"({exception_line(exc, 300)})") from None
-            self.client = Client(self.cluster)
-        else:
-            try:
-                self.client = Client(self.arg, timeout="20s")
-            except (OSError, TimeoutError) as exc:
-                raise UserError(f"--scheduler {self.arg}: cannot reach the scheduler ({exception_line(exc, 300)})") from None
-        return self.client
-
-    def __exit__(self, *exc) -> None:
-        if self.client is not None:
-            self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-
-
-def _host_workers(client) -> dict[str, int]:
-    counts: dict[str, int] = {}
-    for address in client.scheduler_info(n_workers=-1)["workers"]:
-        host = address.rpartition(":")[0]
-        counts[host] = counts.get(host, 0) + 1
-    return counts
-
-
 def _run_dask(client, tasks, todo, manifest, retries, report) -> None:
-    from distributed import as_completed
-
-    hosts = _host_workers(client)
+    hosts = host_workers(client)
     if not hosts:
         print(f"dvsot generate: no workers on {client.scheduler.address} yet; waiting for some", file=sys.stderr)
-    pending: dict = {}
-    done = as_completed()
-    for i in todo:
-        fut = client.submit(render_task, tasks[i], hosts, pure=False, key=f"scene-{tasks[i].name}-1")
-        pending[fut.key] = (i, 1)
-        done.add(fut)
-    for fut in done:
-        i, attempt = pending.pop(fut.key)
-        try:
-            outcome: Any = fut.result()
-        except Exception as exc:  # the worker died (KilledWorker), the task could not be sent or run, ...
-            outcome = exc
-        final = _ok(outcome) or attempt > retries
-        rec = _record(manifest, i, outcome, final)
-        report(rec)
-        fut.release()
-        if not final:
-            tried = {a["worker"] for a in rec["attempts"]}
-            others = [w for w in client.scheduler_info(n_workers=-1)["workers"] if w not in tried]
-            # on another worker while there is one (a strict restriction: a loose one lands wherever is free first)
-            again = client.submit(render_task, tasks[i], _host_workers(client) or hosts, pure=False,
-                                  key=f"scene-{tasks[i].name}-{attempt + 1}", workers=others or None)
-            pending[again.key] = (i, attempt + 1)
-            done.add(again)
 
+    def done(k: int, outcome: dict) -> None:
+        report(_record(manifest, todo[k], outcome, final=True))
 
-def map_tasks(scheduler: str, fn: Callable, calls: list[tuple],
-              on_result: Callable[[int, Any], None] | None = None) -> list:
-    """fn(*call) for every call, one Dask task each (local:N or tcp://HOST:PORT); results in call order.
+    def failed(k: int, failure: Failure, final: bool) -> None:
+        report(_record(manifest, todo[k], failure, final))
 
-    Results are taken as they finish (on_result(k, result) for each); a task that raised, or whose worker
-    died, is one RunError line and the rest are cancelled.
-    """
-    from distributed import as_completed
-
-    from dvsot.errors import RunError
-
-    kind, arg = parse_scheduler(scheduler)
-    results: list = [None] * len(calls)
-    with _client(kind, arg) as client:
-        futures = {client.submit(fn, *call, pure=False): k for k, call in enumerate(calls)}
-        for fut in as_completed(futures):
-            k = futures[fut]
-            try:
-                results[k] = fut.result()
-            except Exception as exc:  # a crash of the task itself, a dead worker, a lost connection
-                client.cancel(list(futures))
-                raise RunError(f"task {k + 1} of {len(calls)} failed on {scheduler}: {exception_line(exc, 300)}") from None
-            if on_result is not None:
-                on_result(k, results[k])
-    return results
+    run_tasks(client, render_task, [(tasks[i], hosts) for i in todo], retries, on_result=done, on_failure=failed,
+              failure_of=_failure, name="scene")
 
 
 def summary_line(manifest: Manifest) -> str:
