@@ -8,7 +8,6 @@ Frames are produced lazily, one at a time.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
 
@@ -33,7 +32,6 @@ from dvsot.events import CodedFrame, log_intensity
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
-MAX_SECONDS = 1e9  # keeps timestamps in microseconds well inside int64
 _LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], np.float32)  # Rec. 709, in OpenCV's B, G, R order
 
 
@@ -229,41 +227,3 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
             raise UserError(f"{p}: video has no frames")
         return FrameSource(p, count, w, h, fps, srgb)
     raise UserError(f"{p}: not an image directory, a video ({', '.join(sorted(VIDEO_SUFFIXES))}) or a .npy stack")
-
-
-def text_lines(path: str | os.PathLike, what: str) -> list[tuple[int, str]]:
-    """(1-based line number, text) of a text file's lines that hold something once `#` comments are cut off."""
-    p = Path(path)
-    kind = file_kind_problem(p)  # before reading: a FIFO would block
-    if kind:
-        raise UserError(f"{p}: cannot read {what} ({'no such file' if kind == 'no such file' else kind})")
-    try:
-        lines = p.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) else "not a text file"
-        raise UserError(f"{p}: cannot read {what} ({reason})") from None
-    numbered = ((no, ln.split("#")[0].strip()) for no, ln in enumerate(lines, start=1))
-    return [(no, ln) for no, ln in numbered if ln]
-
-
-def read_timestamps(path: str | os.PathLike, count: int) -> np.ndarray:
-    """Timestamps in microseconds from a file of seconds, one per line (as ESIM reads them); checked."""
-    p = Path(path)
-    values = []
-    for no, ln in text_lines(p, "timestamps"):
-        try:
-            v = float(ln.split()[0])
-        except ValueError:
-            raise UserError(f"{p}:{no}: not a number of seconds: {ln!r}") from None
-        if not (math.isfinite(v) and abs(v) < MAX_SECONDS):
-            raise UserError(f"{p}:{no}: not a finite number of seconds below {MAX_SECONDS:g}: {ln!r}")
-        values.append(v)
-    t = np.rint(np.array(values, np.float64) * 1e6).astype(np.int64)
-    if len(t) != count:
-        raise UserError(f"{p}: {len(t)} timestamps for {count} frames")
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        raise UserError(f"{p}: timestamps must increase (frame {bad[0] + 1} at {values[bad[0] + 1]} s does not)")
-    if t[0] < 0:
-        raise UserError(f"{p}: timestamps must be >= 0")
-    return t

@@ -1,13 +1,12 @@
 """Frames you already have (image directory, video, .npy stack) -> events -> a dataset file: `dvsot simulate`'s library.
 
-`simulate_file` does the whole run; `frame_times` and `read_box_csv` are its checked inputs. Messages
-name a setting by its parameter name unless `labels` says otherwise ({"fps": "--fps", ...}: how the
-command line calls them).
+`simulate_file` does the whole run; `frame_times` and `read_box_csv` (dvsot.textfiles) are its checked
+inputs. Messages name a setting by its parameter name unless `labels` says otherwise ({"fps": "--fps",
+...}: how the command line calls them).
 """
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from pathlib import Path
@@ -18,6 +17,7 @@ import numpy as np
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import UserError
 from dvsot.events import EventParams
+from dvsot.textfiles import read_box_csv, read_timestamps
 
 MAX_FPS = 1e6  # timestamps are whole microseconds: a faster rate would give frames the same time
 
@@ -31,7 +31,6 @@ def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathL
                 source_fps: float | None = None, source: str = "frames",
                 labels: Mapping[str, str] | None = None) -> np.ndarray:
     """Times in microseconds of `count` frames: from a timestamps file (seconds), else fps, else the source's rate."""
-    from dvsot.frames import read_timestamps
     from dvsot.validate import MAX_DURATION_S
 
     if timestamps is not None:
@@ -49,50 +48,6 @@ def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathL
     if timestamps is None:
         t_us = np.rint(np.arange(count) * 1e6 / rate).astype(np.int64)
     return t_us
-
-
-def _box_row(path: str, no: int, line: str) -> list[float]:
-    """One CSV line t_s,x,y,w,h as numbers; times finite, w and h positive (or the whole box NaN: absent)."""
-    from dvsot.frames import MAX_SECONDS
-
-    cells = [c.strip() for c in line.split(",")]
-    if len(cells) != 5:
-        raise UserError(f"{path}:{no}: expected 5 columns t_s,x,y,w,h, found {len(cells)}")
-    try:
-        row = [float(c) for c in cells]
-    except ValueError:
-        raise UserError(f"{path}:{no}: not a number in {line!r} (columns t_s,x,y,w,h)") from None
-    t, x, y, w, h = row
-    if not (math.isfinite(t) and abs(t) < MAX_SECONDS):
-        raise UserError(f"{path}:{no}: box time must be a finite number of seconds below {MAX_SECONDS:g}, "
-                        f"got {cells[0]!r}")
-    if all(math.isnan(v) for v in (x, y, w, h)):
-        return row  # NaN box: the target is absent at this time
-    if not all(math.isfinite(v) for v in (x, y, w, h)):
-        raise UserError(f"{path}:{no}: x,y,w,h must be finite (or all nan for no target), got {line!r}")
-    if w <= 0 or h <= 0:
-        raise UserError(f"{path}:{no}: box width and height must be positive, got w={cells[3]} h={cells[4]}")
-    return row
-
-
-def read_box_csv(path: str | os.PathLike, t_origin_us: int, width: int,
-                 height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Box times (us, relative to t_origin_us) and x,y,w,h rows (pixels) of a CSV t_s,x,y,w,h; checked line by line."""
-    from dvsot.frames import text_lines
-    from dvsot.validate import box_problem
-
-    numbered = text_lines(path, "boxes as CSV t_s,x,y,w,h")
-    if not numbered:
-        raise UserError(f"{path}: no boxes (expected lines t_s,x,y,w,h)")
-    rows = np.array([_box_row(str(path), no, ln) for no, ln in numbered], np.float64)
-    problem = box_problem(rows[:, 1:5], width, height, lambda i: f"the box on line {numbered[i][0]}")
-    if problem:
-        raise UserError(f"{path}: {problem}")
-    t = np.rint(rows[:, 0] * 1e6).astype(np.int64) - t_origin_us
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        raise UserError(f"{path}:{numbered[bad[0] + 1][0]}: box times must increase")
-    return t, rows[:, 1:5]
 
 
 def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: EventParams | None = None,

@@ -44,7 +44,7 @@ class BoxFile:
 
 def _numbers(path: Path, what: str, fields: tuple[int, ...]) -> tuple[np.ndarray, list[int]]:
     """Rows of numbers of a text file (all with one of `fields` counts), and their line numbers; errors name the line."""
-    from dvsot.frames import text_lines
+    from dvsot.textfiles import text_lines
 
     numbered = text_lines(path, what)
     if not numbered:
