@@ -87,7 +87,7 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
                 cfg.render.threads = _threads_for_this_worker(host_workers)
             from dvsot.scene_checks import visibility_warnings
 
-            warnings = visibility_warnings(cfg)  # here, not at the head: ~0.1 s a scene
+            warnings = visibility_warnings(cfg)  # here, not at the head: each costs a scene's projections
             from dvsot.generate import run_manifest
             from dvsot.outputs import run_outputs
 

@@ -93,7 +93,7 @@ class SCTNTwin(nn.Module):
         """score() of each candidate box's encoded canvas (N,), computed from the events: conv1's kernel equals its
         stride, so each canvas pixel feeds one conv1 cell and conv1 is a sum of the weight columns of the pixels
         that hold an event (the dense canvas is ~99% zeros); the same outputs as encode_boxes + score to float
-        rounding (test), ~4x less time. MACs are still counted as a conventional ANN runs it: dense."""
+        rounding (test), in less time. MACs are still counted as a conventional ANN runs it: dense."""
         cfg = self.cfg
         k, cells = cfg.kernels[0], cfg.conv_sizes()[0]
         if k != cfg.strides[0]:

@@ -223,7 +223,7 @@ class SCTN(nn.Module):
             index = torch.where(ok, ys[:, :, None] * fw + xs[:, None, :], fh * fw)  # fh * fw: a zero cell
             cells = feat[active].permute(0, 2, 3, 1).reshape(ta, fh * fw, c)
             cells = torch.cat([cells, cells.new_zeros(ta, 1, c)], dim=1)
-            # index_select, not cells[:, index]: the advanced-indexing kernel is ~8x slower here
+            # index_select, not cells[:, index]: the advanced-indexing kernel is much slower here
             selected = torch.index_select(cells, 1, index.view(-1)).view(ta, u, -1)
             if ta == t:
                 products = nn.functional.linear(selected, w1)

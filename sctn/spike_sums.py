@@ -1,6 +1,6 @@
 """Event-driven weighted sums of binary spike maps: fc1 of SCTN's fast search without a dense product.
 
-conv3's spike map is sparse (about 5-13 % of its entries spike in a step), and fc1 reads a masked
+conv3's spike map is sparse (a small fraction of its entries spike in a step), and fc1 reads a masked
 window of it per candidate crop. Instead of gathering every crop's window (mostly zeros) and
 multiplying it densely, each crop adds up fc1's weight columns of the cells that spiked: only
 additions, as many as the crop's spikes times fc1's width, which is how an SNN's synaptic

@@ -2,7 +2,7 @@
 so that renders only look it up (render.bake_background); which part to bake is dvsot.plane_view's job.
 
 The plane is static, so its texture never changes: evaluating noise/Voronoi/wave nodes at every camera ray
-and light sample is wasted work (woman_ball's emissive Voronoi: ~0.3 s a sample)."""
+and light sample is wasted work (a large share of a sample for an emissive Voronoi: docs/results.md)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from dvsot.config import Render, Texture
 from dvsot.plane_view import bake_sides, plane_uvs
 
 # Textures cheap to evaluate and made of sharp edges (bricks, checkers): baking gains little there
-# (city_star ~5%) and resamples their sub-pixel edges, so "auto" leaves them procedural.
+# (docs/results.md) and resamples their sub-pixel edges, so "auto" leaves them procedural.
 SHARP_KINDS = {"brick", "checker", "gradient"}
 
 

@@ -143,8 +143,8 @@ def lean_surface(nt, m: Material, colour) -> None:
     reflectance of IOR 1.5, plus an Emission shader when m.emission > 0.
 
     It has the Principled BSDF's two lobes without its layering, energy compensation and multiscatter
-    GGX, which Cycles evaluates at every shading point and light sample (city_star: ~9% less CPU time
-    a sample, mean luma -0.9%)."""
+    GGX, which Cycles evaluates at every shading point and light sample: less CPU time a sample for a
+    look close to the Principled BSDF's (figures: docs/results.md)."""
     out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
     diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (*m.color, 1.0)

@@ -94,7 +94,7 @@ class BlenderScene:
         sc.cycles.seed = self.cfg.derived_seed("cycles") % (2**31)
         sc.cycles.use_animated_seed = False
         # With a single light (one lamp, no emissive surface; the world is sampled apart) the light tree
-        # only adds work: the samples, and so the image, are the same without it (~10% faster). With
+        # only adds work: the samples, and so the image, are the same without it, and faster. With
         # more lights it chooses among them differently, so it stays on there.
         cfg = self.cfg
         materials = [cfg.target.material] + [o.material for o in cfg.objects]
@@ -152,7 +152,7 @@ class BlenderScene:
         main = sc.view_layers[0]
         main.name = "main"
         main.use_pass_object_index = True
-        main.use_pass_z = False  # on by default; nothing reads depth, and writing it costs ~2% a frame
+        main.use_pass_z = False  # on by default; nothing reads depth, and writing it costs render time
         if not cfg.render.specular:
             self._matte()
         if cfg.render.amodal_mask == "render":

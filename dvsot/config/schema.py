@@ -198,10 +198,10 @@ class Render(Strict):
     amodal_mask: Literal["raster", "render"] = Field(
         "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
     specular: bool = Field(
-        True, description="false: matte materials (no specular layer of the Principled BSDF); ~25% faster, duller look")
+        True, description="false: matte materials (no specular layer of the Principled BSDF); faster, duller look")
     shading: Literal["path", "direct"] = Field(
         "path", description="path: Cycles path tracing; direct: Lambert lighting from the suns and the world "
-                            "evaluated in each surface's shader (no shadows, no specular, no bounces); ~2x faster")
+                            "evaluated in each surface's shader (no shadows, no specular, no bounces); much faster")
     surface: Literal["lean", "principled"] = Field(
         "lean", description="lean: Lambert diffuse + GGX glossy mixed by Fresnel (IOR 1.5), the classic dielectric; "
                             "principled: Blender's Principled BSDF (layered, energy-compensated; slower)")

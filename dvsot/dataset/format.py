@@ -56,7 +56,8 @@ from dvsot.events import EventBatch
 FORMAT = "dvsot"
 FORMAT_VERSION = 2
 # name -> h5py filter options for event columns. gzip and shuffle are built into every HDF5 library; gzip 1
-# after the byte shuffle is ~0.4x LZF's size and as fast to read (benchmarks/perf/bench_compression.py)
+# after the byte shuffle is smaller than LZF and as fast to read (benchmarks/perf/bench_compression.py;
+# figures: docs/results.md)
 COMPRESSIONS: dict[str | None, dict[str, Any]] = {
     "gzip": {"compression": "gzip", "compression_opts": 1, "shuffle": True},
     "gzip-noshuffle": {"compression": "gzip", "compression_opts": 1},

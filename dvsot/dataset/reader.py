@@ -67,7 +67,7 @@ class Dataset:
         ev = f["events"]
         self._has_signal = "signal" in ev
         # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
-        # would decompress a whole 2 MB chunk for every query (10x slower segment reads)
+        # would decompress a whole 2 MB chunk for every query
         self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
         self.num_events = int(ev["t"].shape[0])
         if "num_events" in self.attrs and int_attr(self.attrs, "num_events", 0) != self.num_events:
