@@ -7,10 +7,10 @@ field named on an error), every output path and the manifest's.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 from dvsot.config import SceneConfig, asset_paths, load_scene, read_scene_text, read_yaml
-from dvsot.errors import UserError
+from dvsot.errors import UserError, label
 from dvsot.outputs import output_dir, output_file
 from dvsot.preview import check_preview_size
 from dvsot.scale import Manifest, SceneTask, run_scenes
@@ -20,7 +20,7 @@ MANIFEST = "manifest.json"
 
 
 def load_plain_scene(path: str | Path, overrides: dict | None = None) -> SceneConfig:
-    """load_scene, with a template (distributions, counts, random walks) named as such: it needs --variants."""
+    """load_scene, with a template (distributions, counts, random walks) named as such: it needs drawing."""
     try:
         return load_scene(path, overrides)
     except UserError:
@@ -30,7 +30,7 @@ def load_plain_scene(path: str | Path, overrides: dict | None = None) -> SceneCo
             data = None
         if is_template(data):
             raise UserError(f"{path}: a scene template (it holds distributions, counted items or random walks): "
-                            "draw scenes from it with --variants N") from None
+                            "draw scenes from it (variant_tasks; `dvsot generate --variants N`)") from None
         raise
 
 
@@ -44,10 +44,10 @@ def _warn(cfg: SceneConfig, source: str, warn: Callable[[str], None] | None) -> 
 
 def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrides: dict | None = None,
                   preview: bool = False, warn: Callable[[str], None] | None = None,
-                  ) -> tuple[list[SceneTask], list[Path]]:
+                  labels: Mapping[str, str] | None = None) -> tuple[list[SceneTask], list[Path]]:
     """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5."""
     if count < 1:
-        raise UserError(f"--variants must be >= 1, got {count}")
+        raise UserError(f"count (variants to draw) must be >= 1, got {count}")
     tpl = read_template(template)
     out = Path(out_dir).resolve()
     tasks, inputs = [], [Path(template)]
@@ -55,7 +55,7 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
         cfg = validate_variant(tpl, v, dict(overrides or {}), note=f"(variant {v.index})")
         _warn(cfg, f"{template} (variant {v.index})", warn)
         if preview:
-            check_preview_size(f"{template} (variant {v.index})", cfg)
+            check_preview_size(f"{template} (variant {v.index})", cfg, label("preview", labels))
         inputs += asset_paths(cfg)
         tasks.append(SceneTask(name=v.name, text=v.text(Path(template).name), source=f"{template} (variant {v.index})",
                                base_dir=str(tpl.base_dir), output=str(out / f"{v.name}.h5"),
@@ -66,7 +66,7 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
 
 def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = None,
                 preview: bool = False, warn: Callable[[str], None] | None = None,
-                ) -> tuple[list[SceneTask], list[Path]]:
+                labels: Mapping[str, str] | None = None) -> tuple[list[SceneTask], list[Path]]:
     """Validate scene files; (tasks, input files) with outputs <out_dir>/<scene name>.h5."""
     out = Path(out_dir).resolve()
     tasks, inputs = [], []
@@ -74,7 +74,7 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
         cfg = load_plain_scene(p, dict(overrides or {}))
         _warn(cfg, str(p), warn)
         if preview:
-            check_preview_size(str(p), cfg)
+            check_preview_size(str(p), cfg, label("preview", labels))
         inputs += [Path(p), *asset_paths(cfg)]
         tasks.append(SceneTask(name=cfg.name, text=read_scene_text(p), source=str(p),
                                base_dir=str(Path(p).parent.resolve()), output=str(out / f"{cfg.name}.h5"),
@@ -82,9 +82,10 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
     return tasks, inputs
 
 
-def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path]) -> Path:
+def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path],
+                  labels: Mapping[str, str] | None = None) -> Path:
     """Check every output path (and the manifest's) before any work; make out_dir; the manifest's path."""
-    out = output_dir(out_dir, "--out-dir")
+    out = output_dir(out_dir, label("out_dir", labels))
     seen: dict = {}
     for t in tasks:
         o = Path(t.output)
@@ -95,7 +96,7 @@ def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path
         seen[o] = t.source
         gif = o.with_suffix(".gif")
         if t.preview and gif.is_dir():
-            raise UserError(f"{gif}: --preview would write this path, a directory")
+            raise UserError(f"{gif}: {label('preview', labels)} would write this path, a directory")
     manifest = out / MANIFEST
     if manifest.is_dir() or manifest.exists():
         output_file(manifest, "the manifest", inputs)
@@ -105,13 +106,16 @@ def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path
 
 def generate_many(tasks: list[SceneTask], inputs: list[Path], out_dir: str | Path, scheduler: str | None = None,
                   retries: int = 1, resume: bool = False,
-                  report: Callable[[dict], None] | None = None) -> Manifest:
-    """Check the outputs, then render every task (here, or on `scheduler`); the manifest of the run."""
+                  report: Callable[[dict], None] | None = None,
+                  labels: Mapping[str, str] | None = None) -> Manifest:
+    """Check the outputs, then render every task (here, or on `scheduler`); the manifest of the run.
+
+    labels: how messages name the settings out_dir, preview, retries and scheduler (a command's flags)."""
     if retries < 0:
-        raise UserError(f"--retries must be >= 0, got {retries}")
+        raise UserError(f"{label('retries', labels)} must be >= 0, got {retries}")
     if scheduler is not None:
         from dvsot.scale import parse_scheduler
 
-        parse_scheduler(scheduler)
-    manifest = check_outputs(tasks, out_dir, inputs)
+        parse_scheduler(scheduler, label("scheduler", labels))
+    manifest = check_outputs(tasks, out_dir, inputs, labels)
     return run_scenes(tasks, manifest, scheduler, retries, resume, report)

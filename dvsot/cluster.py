@@ -25,17 +25,19 @@ class Failure:
     worker: str | None = None
 
 
-def parse_scheduler(spec: str) -> tuple[str, int | str]:
-    """('local', N) for local:N, ('address', spec) for tcp://HOST:PORT (or tls://, ws://, wss://); UserError else."""
+def parse_scheduler(spec: str, label: str = "scheduler") -> tuple[str, int | str]:
+    """('local', N) for local:N, ('address', spec) for tcp://HOST:PORT (or tls://, ws://, wss://); UserError else.
+
+    label: how the message names the setting (a command passes its flag)."""
     if spec.startswith("local:"):
         n = spec.removeprefix("local:")
         if not n.isdigit() or not 1 <= int(n) <= 256:
-            raise UserError(f"--scheduler local:N needs N, a number of worker processes in 1..256, got {spec!r}")
+            raise UserError(f"{label} local:N needs N, a number of worker processes in 1..256, got {spec!r}")
         return "local", int(n)
     scheme, _, rest = spec.partition("://")
     host, _, port = rest.rpartition(":")
     if scheme not in ("tcp", "tls", "ws", "wss") or not host or not port.isdigit():
-        raise UserError(f"--scheduler must be local:N or tcp://HOST:PORT, got {spec!r}")
+        raise UserError(f"{label} must be local:N or tcp://HOST:PORT, got {spec!r}")
     return "address", spec
 
 
@@ -67,14 +69,14 @@ class Cluster:
                                             dashboard_address=None,
                                             silence_logs=logging.CRITICAL)  # failures are reported, one line each
             except (RuntimeError, OSError, TimeoutError) as exc:
-                raise RunError(f"--scheduler local:{self.arg}: the worker processes did not start "
+                raise RunError(f"scheduler local:{self.arg}: the worker processes did not start "
                                f"({exception_line(exc, 300)})") from None
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(self.arg, timeout="20s")
             except (OSError, TimeoutError) as exc:
-                raise UserError(f"--scheduler {self.arg}: cannot reach the scheduler "
+                raise UserError(f"scheduler {self.arg}: cannot reach the scheduler "
                                 f"({exception_line(exc, 300)})") from None
         return self.client
 

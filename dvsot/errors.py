@@ -1,6 +1,10 @@
 """The exception types the command line turns into one line (bad input: exit status 2, a failed run: exit 1), and
 the one formatter of any exception as one line."""
 
+from __future__ import annotations
+
+from typing import Mapping
+
 
 class UserError(ValueError):
     """Bad input from the user (a file, a field, a value): the message is one line naming what and where.
@@ -17,6 +21,15 @@ class RunError(Exception):
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))
+
+
+def label(name: str, labels: Mapping[str, str] | None = None) -> str:
+    """How a library message names its setting `name`: the caller's label for it (a command's flag), else the name.
+
+    Library messages name settings by their parameter names; a command passes {name: flag} to have its
+    flags named instead.
+    """
+    return (labels or {}).get(name, name)
 
 
 def exception_line(exc: BaseException, limit: int | None = None, kind: bool = True) -> str:

@@ -53,20 +53,22 @@ def event_format(path: str | os.PathLike, flag: str) -> str:
     return SUFFIXES[suffix]
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    """'WIDTHxHEIGHT' as two positive ints (pixels); UserError naming --size otherwise."""
+def parse_size(text: str, label: str = "size") -> tuple[int, int]:
+    """'WIDTHxHEIGHT' as two positive ints (pixels); otherwise a UserError naming the setting as `label`."""
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise UserError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 346x260") from None
+        raise UserError(f"{label} {text!r}: expected WIDTHxHEIGHT, e.g. 346x260") from None
     if not (0 < w <= _MAX_PIXELS and 0 < h <= _MAX_PIXELS):
-        raise UserError(f"--size {text!r}: width and height must lie in 1..{_MAX_PIXELS}")
+        raise UserError(f"{label} {text!r}: width and height must lie in 1..{_MAX_PIXELS}")
     return w, h
 
 
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = "evt3") -> EventFile:
-    """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1."""
+                    evt_version: str = "evt3", size_label: str = "size") -> EventFile:
+    """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
+
+    size: (width, height) for files that do not say; messages name it as size_label."""
     p = Path(path)
     kind = event_format(p, "events file")
     from dvsot.validate import file_kind_problem
@@ -80,15 +82,16 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
         t, x, y, pol, skip, file_size = read_text(p, kind)
         size = file_size or size
         if size is None:
-            raise UserError(f"{p}: a {kind.upper()} file has no sensor size; give --size WIDTHxHEIGHT")
+            raise UserError(f"{p}: a {kind.upper()} file has no sensor size; give {size_label} WIDTHxHEIGHT")
         ev = EventFile(t, x, y, pol, size[0], size[1], p, skip)
     else:
-        ev = _read_with_faery(p, kind, size, evt_version)
+        ev = _read_with_faery(p, kind, size, evt_version, size_label)
     check_events(ev)
     return ev
 
 
-def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_version: str) -> EventFile:
+def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_version: str,
+                     size_label: str = "size") -> EventFile:
     import faery
 
     fallback = size or (1280, 720)
@@ -100,7 +103,7 @@ def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_ve
     except Exception as exc:  # faery's decoders raise bare Exceptions with their own messages
         raise UserError(f"{path}: cannot read {kind.upper()} events ({' '.join(str(exc).split())})") from None
     if size is not None and (width, height) != tuple(size):
-        raise UserError(f"{path}: the file says {width}x{height} pixels, --size says {size[0]}x{size[1]}")
+        raise UserError(f"{path}: the file says {width}x{height} pixels, {size_label} says {size[0]}x{size[1]}")
     return EventFile(a["t"].astype(np.int64), a["x"], a["y"], a["on"].astype(np.uint8), int(width), int(height), path)
 
 
@@ -133,7 +136,7 @@ def check_events(ev: EventFile) -> None:
 def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
                      width: int, height: int, evt_version: str = "evt3") -> None:
     """Write events (t us >= 0 in time order, pixels, polarity 0/1) in the format of the path's suffix."""
-    kind = event_format(path, "-o")
+    kind = event_format(path, "output")
     if kind in ("csv", "txt"):
         from dvsot.textevents import write_text
 
@@ -174,9 +177,9 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
     from dvsot.outputs import replacing, run_outputs
 
     out = Path(out_path)
-    event_format(out, "-o")
+    event_format(out, "output")
     if evt_version not in EVT_VERSIONS:
-        raise UserError(f"--evt {evt_version!r}: expected one of {', '.join(EVT_VERSIONS)}")
+        raise UserError(f"evt_version {evt_version!r}: expected one of {', '.join(EVT_VERSIONS)}")
     with Dataset(dataset_path) as ds:
         parts = list(ds.chunks())
         track = ds.boxes()

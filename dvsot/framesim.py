@@ -15,16 +15,11 @@ from typing import Mapping
 import numpy as np
 
 from dvsot.defaults import SEGMENT_US
-from dvsot.errors import UserError
+from dvsot.errors import UserError, label
 from dvsot.events import EventParams
 from dvsot.textfiles import read_box_csv, read_timestamps
 
 MAX_FPS = 1e6  # timestamps are whole microseconds: a faster rate would give frames the same time
-
-
-def _label(labels: Mapping[str, str] | None, name: str) -> str:
-    """How messages name the parameter `name` (the caller's label, e.g. a flag, else the name itself)."""
-    return (labels or {}).get(name, name)
 
 
 def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathLike | None = None,
@@ -39,10 +34,10 @@ def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathL
     else:
         rate = fps if fps is not None else source_fps
         if not rate or not 0 < rate <= MAX_FPS:  # a video's own rate: None, or whatever its header says
-            raise UserError(f"{source}: give {_label(labels, 'fps')} N (positive) or "
-                            f"{_label(labels, 'timestamps')} FILE")
+            raise UserError(f"{source}: give {label('fps', labels)} N (positive) or "
+                            f"{label('timestamps', labels)} FILE")
         span = (count - 1) / rate  # before any array is made: a tiny rate would overflow microseconds
-        what = f"{_label(labels, 'fps')} {fps:g}: {count} frames" if fps is not None else f"{source}: its frames"
+        what = f"{label('fps', labels)} {fps:g}: {count} frames" if fps is not None else f"{source}: its frames"
     if span >= MAX_DURATION_S:  # ms_to_idx holds an entry per millisecond of the span
         raise UserError(f"{what} span {span:g} s, more than the bound of {MAX_DURATION_S} s per dataset file")
     if timestamps is None:
@@ -71,7 +66,7 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     inputs = [Path(p) for p in (frames, timestamps, boxes) if p]
     if inputs[0].is_dir():  # a frames directory: none of its files may be overwritten either
         inputs += sorted(inputs[0].iterdir())
-    output_file(output, _label(labels, "output"), inputs)
+    output_file(output, label("output", labels), inputs)
     source = open_frames(frames, srgb=srgb)
     if source.width * source.height > MAX_SENSOR_PIXELS:
         raise UserError(f"{frames}: frames of {source.width}x{source.height} px, more than the bound of "

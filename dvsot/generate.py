@@ -99,8 +99,25 @@ def _status(show: bool, text: str) -> None:
 
 
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
-             keep_frames: str | Path | None = None) -> dict:
-    """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary."""
+             keep_frames: str | Path | None = None, preview: bool = False) -> dict:
+    """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary.
+
+    preview: also write <out_path>.gif (event frames with the box); the file, its preview and kept frames
+    are renamed into place together, or none of them (dvsot.outputs).
+    """
+    with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
+        summary = _generate(cfg, out_path, scene_text, progress, keep_frames)
+        if preview:
+            from dvsot.preview import PREVIEW_SEGMENTS, write_preview
+
+            gif = Path(out_path).with_suffix(".gif")
+            write_preview(run.staged(out_path), gif, max_segments=PREVIEW_SEGMENTS)
+            summary["preview"] = str(gif)
+    return summary
+
+
+def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress: bool,
+              keep_frames: str | Path | None) -> dict:
     from dvsot.blender import BlenderScene, blender_version
 
     start = time.perf_counter()

@@ -27,15 +27,15 @@ OFF_COLOUR = np.array([30, 60, 220], np.uint8)
 _BACKGROUNDS = {"white": 255, "dark": 20}
 _TEXT = {"white": (0, 0, 0), "dark": (235, 235, 235)}
 _SUFFIXES = (".gif", ".mp4")
-PREVIEW_SEGMENTS = 200  # frames of dvsot generate's --preview GIF, one per segment
+PREVIEW_SEGMENTS = 200  # frames of a scene's preview GIF (dvsot generate's), one per segment
 
 
-def check_preview_size(source: str, cfg) -> None:
-    """UserError before rendering if a scene's --preview would hold more frames in memory than allowed."""
+def check_preview_size(source: str, cfg, label: str = "preview") -> None:
+    """UserError before rendering if a scene's preview would hold more frames in memory than allowed."""
     segments = int(cfg.duration_s * 1e6) // int(round(cfg.segment_ms * 1000))
     problem = preview_problem(cfg.sensor.width, cfg.sensor.height, min(PREVIEW_SEGMENTS, segments))
     if problem:
-        raise UserError(f"{source}: --preview: {problem}")
+        raise UserError(f"{source}: {label}: {problem}")
 
 
 def event_frame(events: EventBatch, width: int, height: int,

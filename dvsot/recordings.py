@@ -21,10 +21,11 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
-from dvsot.errors import UserError
+from dvsot.errors import UserError, label
 from dvsot.exchange import EventFile, read_event_file
 from dvsot.defaults import SEGMENT_US
 
@@ -159,24 +160,29 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
 def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: str | os.PathLike | None = None,
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
                      size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US, evt_version: str = "evt3",
-                     interpolate: bool = False) -> Path:
-    """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written."""
+                     interpolate: bool = False, labels: Mapping[str, str] | None = None) -> Path:
+    """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
+
+    labels: how messages name the settings boxes, box_times and size (a command's flags)."""
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
 
-    ev = read_event_file(events, size, evt_version)
+    ev = read_event_file(events, size, evt_version, label("size", labels))
     if (box_times or absent) and not boxes:
-        raise UserError(f"{box_times or absent}: annotation times and absent flags need a box file (--boxes)")
+        raise UserError(f"{box_times or absent}: annotation times and absent flags need a box file "
+                        f"({label('boxes', labels)})")
     track, box_t = None, None
     if boxes:
         track = read_box_file(boxes, ev.width, ev.height)
         if box_times and track.t_us is not None:
-            raise UserError(f"{boxes}: the boxes carry their own times (t_s,x,y,w,h); give no --box-times-us")
+            raise UserError(f"{boxes}: the boxes carry their own times (t_s,x,y,w,h); give no "
+                            f"{label('box_times', labels)}")
         box_t = read_box_times(box_times, len(track.xywh)) if box_times else track.t_us
         if box_t is None:
-            raise UserError(f"{boxes}: boxes x,y,w,h have no times; give --box-times-us FILE (one annotation time "
-                            f"per line, microseconds on the events' clock) or a box file of t_s,x,y,w,h")
+            raise UserError(f"{boxes}: boxes x,y,w,h have no times; give {label('box_times', labels)} FILE "
+                            "(one annotation time per line, microseconds on the events' clock) or a box file of "
+                            "t_s,x,y,w,h")
         if absent:
             xywh = track.xywh.copy()
             xywh[read_absent(absent, len(xywh))] = np.nan

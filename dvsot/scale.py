@@ -88,18 +88,8 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             from dvsot.scene_checks import visibility_warnings
 
             warnings = visibility_warnings(cfg)  # here, not at the head: each costs a scene's projections
-            from dvsot.generate import run_manifest
-            from dvsot.outputs import run_outputs
-
-            # the dataset file and its preview are renamed into place together, or neither (dvsot.outputs)
-            with run_outputs(run_manifest(task.output) if task.preview else None) as run:
-                summary = generate(cfg, task.output, task.text, progress=False)
-                if task.preview:
-                    from dvsot.preview import PREVIEW_SEGMENTS, write_preview
-
-                    gif = Path(task.output).with_suffix(".gif")
-                    write_preview(run.staged(task.output), gif, max_segments=PREVIEW_SEGMENTS)
-                    summary["preview"] = str(gif)
+            # the dataset file and its preview are renamed into place together, or neither (dvsot.generate)
+            summary = generate(cfg, task.output, task.text, progress=False, preview=task.preview)
             summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
             # CPU seconds of the whole worker process (every render thread) during the task: what the scene cost
             # whatever else ran on the machine

@@ -94,7 +94,7 @@ def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str
     if fmt != f"{kind}-checkpoint":
         held = fmt.removesuffix("-checkpoint") if isinstance(fmt, str) and fmt.endswith("-checkpoint") else None
         if held:
-            raise UserError(f"{p}: holds a {held} model, not {article} {label} one (it is for --tracker {held})")
+            raise UserError(f"{p}: holds a {held} model, not {article} {label} one (a checkpoint of the {held} tracker)")
         raise UserError(f"{p}: not {article} {label} checkpoint")
     return blob
 

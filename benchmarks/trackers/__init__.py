@@ -68,9 +68,10 @@ def get_tracker(name: str, **options) -> "Tracker":  # noqa: F821 - imported laz
     return tracker_class(name)(**options)
 
 
-def load_tracker_module(module: str) -> None:
-    """Import a user module whose trackers register themselves; a missing module raises UserError."""
+def load_tracker_module(module: str, label: str = "tracker module") -> None:
+    """Import a user module whose trackers register themselves; a missing module raises UserError (naming it as
+    `label` and the module)."""
     try:
         importlib.import_module(module)
     except ModuleNotFoundError as exc:
-        raise UserError(f"--tracker-module {module}: cannot import ({exc})") from None
+        raise UserError(f"{label} {module}: cannot import ({exc})") from None

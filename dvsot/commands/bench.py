@@ -230,11 +230,11 @@ def plan(args: argparse.Namespace) -> Plan:
     if args.scheduler:
         from dvsot.scale import parse_scheduler
 
-        parse_scheduler(args.scheduler)
+        parse_scheduler(args.scheduler, "--scheduler")
     if args.max_segments is not None and args.max_segments < 1:
         raise UserError(f"--max-segments must be >= 1, got {args.max_segments}")
     for m in args.tracker_module:
-        load_tracker_module(m)
+        load_tracker_module(m, "--tracker-module")
     trackers = list(dict.fromkeys(args.tracker))
     for name in trackers:
         tracker_class(name)

@@ -53,36 +53,23 @@ def _overrides(args: argparse.Namespace) -> dict:
 def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool, quiet: bool,
                  keep_frames: str | None) -> dict:
     """Worker: load, render, simulate and write one scene (own process when parallel)."""
-    from pathlib import Path
-
     from dvsot.config import load_scene, read_scene_text
     from dvsot.generate import generate
-
-    from dvsot.generate import run_manifest
-    from dvsot.outputs import run_outputs
 
     cfg = load_scene(scene_path, overrides)
     if "sensor.width" in overrides and cfg.sensor.fx is not None:
         from dvsot.errors import UserError
 
         raise UserError(f"{scene_path}: --resolution cannot rescale a lens given as fx/cx/cy")
-    # the dataset file, its preview and kept frames are one run: renamed into place together, or none of them
-    with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
-        summary = generate(cfg, out_path, read_scene_text(scene_path), progress=not quiet, keep_frames=keep_frames)
-        if preview:
-            from dvsot.preview import PREVIEW_SEGMENTS, write_preview
-
-            gif = Path(out_path).with_suffix(".gif")
-            write_preview(run.staged(out_path), gif, max_segments=PREVIEW_SEGMENTS)
-            summary["preview"] = str(gif)
-    return summary
+    return generate(cfg, out_path, read_scene_text(scene_path), progress=not quiet, keep_frames=keep_frames,
+                    preview=preview)
 
 
 def _check_preview_size(path: str, cfg) -> None:
     """UserError before rendering if the --preview of a scene would hold more frames in memory than allowed."""
     from dvsot.preview import check_preview_size
 
-    check_preview_size(path, cfg)
+    check_preview_size(path, cfg, "--preview")
 
 
 def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
@@ -183,6 +170,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+# how dvsot.batch's messages name its settings here
+_LABELS = {"out_dir": "--out-dir", "preview": "--preview", "retries": "--retries", "scheduler": "--scheduler"}
+
+
 def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     """A template's variants or several scenes, each its own task (dvsot.batch); exit 1 if any finally failed."""
     import json
@@ -202,11 +193,13 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     if args.variants is not None:
         if len(paths) != 1:
             raise UserError(f"--variants draws from one template file, got {len(paths)}")
+        if args.variants < 1:
+            raise UserError(f"--variants must be >= 1, got {args.variants}")
         # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
         tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview,
-                                      warn if args.dry_run else None)
+                                      warn if args.dry_run else None, _LABELS)
     else:
-        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview, warn)
+        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview, warn, _LABELS)
     if args.dry_run:
         for t in tasks:
             print(f"# ---- {t.name}: {t.output}\n{t.text}")
@@ -226,6 +219,7 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
             for w in rec["warnings"]:
                 warn(f"{rec['name']}: {w}")
 
-    manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report)
+    manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report,
+                             _LABELS)
     print(summary_line(manifest), file=sys.stderr)
     return 1 if any(r["status"] == "failed" for r in manifest.records) else 0

@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
 
+_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "size": "--size"}  # dvsot.recordings' settings as flags
+
+
 def run(args: argparse.Namespace) -> int:
     """Import the events and boxes; print a one-line summary."""
     from dvsot.dataset import Dataset
@@ -49,10 +52,10 @@ def run(args: argparse.Namespace) -> int:
     output_file(args.output, "-o", inputs)
     if args.segment_us < MIN_SEGMENT_US:
         raise UserError(f"--segment-us {args.segment_us}: expected at least {MIN_SEGMENT_US}")
-    size = parse_size(args.size) if args.size else None
+    size = parse_size(args.size, "--size") if args.size else None
     path = import_recording(args.events, args.output, boxes=args.boxes, box_times=args.box_times_us,
                             absent=args.absent, size=size, segment_us=args.segment_us,
-                            evt_version=f"evt{args.evt}", interpolate=args.interpolate)
+                            evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=_LABELS)
     with Dataset(path) as ds:
         scored = int(ds.segment_scored().sum()) if ds.annotated else None
         print(f"{path}: {ds.width}x{ds.height}, {ds.num_events:,} events, {ds.duration_us / 1e6:.3f} s, "
