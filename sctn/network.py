@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict
 from torch import nn
 
 from sctn.neurons import ALPHA_M, ALPHA_S, CLIF
+from sctn.params import CROPS
 from sctn.spike_sums import mix_corners, window_sums
 
 
@@ -284,9 +285,6 @@ class SCTN(nn.Module):
     def forward_record(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Voltages and every layer's spikes (input first, each (T, B, ...)), for energy accounting."""
         return self._run(x, record=True)
-
-
-CROPS = ("bilinear", "nearest")
 
 
 def check_crop(crop: str) -> None:

@@ -31,10 +31,11 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_search
-from sctn.network import SCTN, check_crop
+from sctn.finetune import finetune
+from sctn.network import SCTN
+from sctn.params import SCTNParams
 from sctn.samples import TRACK, propose
 from sctn.sparse_eval import per_candidate_voltages
-from sctn.finetune import finetune
 
 
 def location_rng(seed: int, box_xywh: np.ndarray) -> np.random.Generator:
@@ -45,24 +46,26 @@ def location_rng(seed: int, box_xywh: np.ndarray) -> np.random.Generator:
 class SCTNTracker:
     """Single-object tracker on event segments with a (fine-tuned copy of a) trained SCTN."""
 
-    def __init__(self, model: SCTN | str | os.PathLike | None = None, seed: int = 0, fast: bool = False,
-                 finetune_iters: int = 10, n_candidates: int = TRACK.n, trans: float = TRACK.trans,
-                 trans_growth: float = 1.5, trans_max: float = 1.5, vstar_threshold: float = 0.2,
-                 top_k: int = 3, crop: str = "bilinear", finetune_search_iters: int = 10) -> None:
+    def __init__(self, model: SCTN | str | os.PathLike | None = None, params: SCTNParams | None = None,
+                 **settings) -> None:
+        """`model`: a network or a checkpoint path (the shipped one if None); `params` (SCTNParams), with any of
+        its fields given as keywords on top (SCTNTracker(model, seed=1, fast=True)); bad values raise
+        pydantic's ValidationError naming the field."""
         if model is None or isinstance(model, (str, os.PathLike)):
             from sctn.checkpoint import load_checkpoint
 
             model, _ = load_checkpoint(model)
         self.base = model
         self.model: SCTN = model
-        check_crop(crop)
-        self.seed, self.fast, self.finetune_iters, self.crop = seed, fast, finetune_iters, crop
-        self.finetune_search_iters = finetune_search_iters if fast else 0
-        self.n_candidates, self.trans0, self.trans_growth, self.trans_max = n_candidates, trans, trans_growth, trans_max
-        self.vstar_threshold, self.top_k = vstar_threshold, top_k
-        self.rng = np.random.default_rng(seed)
+        self.params = p = SCTNParams(**{**(params.model_dump() if params is not None else {}), **settings})
+        self.seed, self.fast, self.finetune_iters, self.crop = p.seed, p.fast, p.finetune_iters, p.crop
+        self.finetune_search_iters = p.finetune_search_iters if p.fast else 0
+        self.n_candidates, self.trans0, self.trans_growth, self.trans_max = (p.n_candidates, p.trans, p.trans_growth,
+                                                                            p.trans_max)
+        self.vstar_threshold, self.top_k = p.vstar_threshold, p.top_k
+        self.rng = np.random.default_rng(p.seed)
         self.box = np.full(4, np.nan)
-        self.trans = trans
+        self.trans = p.trans
         self.image_wh = (0, 0)
         self.tuned = False
         self.last_stats: dict = {}

@@ -2,37 +2,28 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
-
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, Strict
+from pydantic import Field
 
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
+from dvsot.strict import Int, Strict
+from sctn.params import SCTNParams
 
-Int = Annotated[int, Strict()]
-Float = Annotated[float, Strict()]
+BENCH_FIELDS = {"checkpoint", "energy_every"}  # the benchmark's own options; the others are the tracker's
 
 
-class SCTNOptions(BaseModel):
-    """`--option sctn.KEY=VALUE` settings, typed and range-checked; unset ones keep SCTNTracker's defaults."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+class BenchOptions(Strict):
+    """The options every SCTN-like benchmark tracker adds to its tracker's settings."""
 
     checkpoint: str | None = None
     energy_every: Int = Field(10, ge=0, description="count operations every N segments; 0 = never")
-    seed: Int | None = Field(None, ge=0)
-    fast: Annotated[bool, Strict()] | None = None  # strict: the text "False" must not mean true
-    finetune_iters: Int | None = Field(None, ge=0)
-    finetune_search_iters: Int | None = Field(None, ge=0)
-    n_candidates: Int | None = Field(None, ge=1)
-    trans: Float | None = Field(None, gt=0)
-    trans_growth: Float | None = Field(None, ge=1)
-    trans_max: Float | None = Field(None, gt=0)
-    vstar_threshold: Float | None = None
-    top_k: Int | None = Field(None, ge=1)
-    crop: Literal["bilinear", "nearest"] | None = None
+
+
+class SCTNOptions(SCTNParams, BenchOptions):
+    """`--option sctn.KEY=VALUE` settings: SCTNTracker's (sctn.params.SCTNParams, typed and range-checked, the
+    paper's defaults) and the benchmark's own."""
 
 
 @register("sctn")
@@ -45,10 +36,8 @@ class SCTNBenchTracker(Tracker):
         from sctn.tracker import SCTNTracker
 
         opts = SCTNOptions(**options)
-        checkpoint, energy_every = opts.checkpoint, opts.energy_every
-        opts = opts.model_dump(exclude_none=True, exclude={"checkpoint", "energy_every"})
-        self.tracker = SCTNTracker(checkpoint, **opts)
-        self._start(energy_every)
+        self.tracker = SCTNTracker(opts.checkpoint, SCTNParams(**opts.model_dump(exclude=BENCH_FIELDS)))
+        self._start(opts.energy_every)
 
     @classmethod
     def wrap(cls, tracker, energy_every: int = 0) -> "SCTNBenchTracker":

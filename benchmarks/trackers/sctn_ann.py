@@ -7,32 +7,14 @@ and the V* >= 0.2 rule on the target unit's output. Energy: dense MACs, the same
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from pydantic import BaseModel, ConfigDict, Field, Strict
-
 from benchmarks.trackers import register
-from benchmarks.trackers.sctn import SCTNBenchTracker
-
-Int = Annotated[int, Strict()]
-Float = Annotated[float, Strict()]
+from benchmarks.trackers.sctn import BENCH_FIELDS, BenchOptions, SCTNBenchTracker
+from sctn.params import SearchParams
 
 
-class TwinOptions(BaseModel):
-    """`--option sctn_ann.KEY=VALUE` settings; unset ones keep SCTNTracker's defaults."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-    checkpoint: str | None = None
-    energy_every: Int = Field(10, ge=0, description="report operations every N segments; 0 = never")
-    seed: Int | None = Field(None, ge=0)
-    finetune_iters: Int | None = Field(None, ge=0)
-    n_candidates: Int | None = Field(None, ge=1)
-    trans: Float | None = Field(None, gt=0)
-    trans_growth: Float | None = Field(None, ge=1)
-    trans_max: Float | None = Field(None, gt=0)
-    vstar_threshold: Float | None = None
-    top_k: Int | None = Field(None, ge=1)
+class TwinOptions(SearchParams, BenchOptions):
+    """`--option sctn_ann.KEY=VALUE` settings: Algorithm 1's (sctn.params.SearchParams; the twin has no fast mode)
+    and the benchmark's own."""
 
 
 @register("sctn_ann")
@@ -47,8 +29,7 @@ class TwinBenchTracker(SCTNBenchTracker):
 
         opts = TwinOptions(**options)
         model, _ = load_twin(opts.checkpoint)
-        kwargs = opts.model_dump(exclude_none=True, exclude={"checkpoint", "energy_every"})
-        self.tracker = SCTNTracker(model, fast=False, **kwargs)
+        self.tracker = SCTNTracker(model, fast=False, **opts.model_dump(exclude=BENCH_FIELDS))
         self._start(opts.energy_every)
         self._per_candidate: float | None = None
 

@@ -1,0 +1,35 @@
+"""The SCTN tracker's settings as typed models (pydantic, no torch: the benchmark's option checks stay light)."""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+from pydantic import Field
+
+from dvsot.strict import Bool, Float, Int, Strict
+from sctn.samples import TRACK
+
+Crop = Literal["bilinear", "nearest"]  # the fast mode's crop of conv3's map (SCTN.forward_search)
+CROPS: tuple[str, ...] = get_args(Crop)
+
+
+class SearchParams(Strict):
+    """Algorithm 1's settings for any model the tracker runs (SCTN or its ANN twin): seed, fine-tuning, candidates
+    (translation range in mean box sizes), the V* rule and the top-k mean box. The defaults are the paper's."""
+
+    seed: Int = Field(0, ge=0, description="fixes the fine-tuning and the candidates drawn at each location")
+    finetune_iters: Int = Field(10, ge=0, description="fine-tuning mini-batches at the first initialisation")
+    n_candidates: Int = Field(TRACK.n, ge=1)
+    trans: Float = Field(TRACK.trans, gt=0, description="initial translation range, x mean box size")
+    trans_growth: Float = Field(1.5, ge=1, description="factor on the range after an unconfident segment")
+    trans_max: Float = Field(1.5, gt=0, description="largest translation range")
+    vstar_threshold: Float = Field(0.2, description="V* at or above it resets the range")
+    top_k: Int = Field(3, ge=1, description="candidates whose mean box and voltage are C* and V*")
+
+
+class SCTNParams(SearchParams):
+    """SCTNTracker's settings: Algorithm 1's (SearchParams) and the fast mode, a named approximation (off)."""
+
+    fast: Bool = False  # strict: the text "False" must not mean true
+    crop: Crop = "bilinear"
+    finetune_search_iters: Int = Field(10, ge=0, description="fast mode: fine-tuning mini-batches run through it")
