@@ -48,7 +48,7 @@ def sample_firing(model, segments: list) -> dict:
     from sctn.energy import LAYER_NAMES, count_synaptic_ops
 
     cfg = model.cfg
-    x = torch.cat([encode_boxes(seg.events, seg.t0_us, seg.box[None], cfg.input_size, cfg.steps, cfg.step_us)
+    x = torch.cat([encode_boxes(seg.events, seg.t0_us, seg.box[None], cfg)
                    for seg, _ in segments])
     counts = count_synaptic_ops(model, x)
     with torch.no_grad():
@@ -70,8 +70,7 @@ def sample_search(model, segments: list, n_candidates: int, seed: int = 0, crop:
     runs = []
     for seg, wh in segments:
         boxes = propose(rng, seg.box.astype(np.float64), n_candidates, "gaussian", TRACK.trans, TRACK.scale, wh)
-        region, origins, rboxes = encode_search(seg.events, seg.t0_us, boxes, seg.box, model.receptive_field(),
-                                                cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+        region, origins, rboxes = encode_search(seg.events, seg.t0_us, boxes, seg.box, cfg)
         runs.append(count_search_ops(model, region, origins, rboxes, crop=crop))
     return {key: float(np.mean([r[key] for r in runs])) for key in ("ac_ops", "mac_ops", "energy_pj")}
 

@@ -32,7 +32,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from dvsot.events import EventBatch
-from sctn.encoding import encode_boxes
+from sctn.encoding import PRESET, encode_boxes
 from sctn.network import NetworkConfig
 
 KIND = "sctn_ann"
@@ -99,10 +99,10 @@ class SCTNTwin(nn.Module):
         if k != cfg.strides[0]:
             boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
             with torch.no_grad():
-                return torch.cat([self.score(encode_boxes(events, t0_us, boxes[i:i + 64], cfg.input_size, cfg.steps,
-                                                          cfg.step_us)) for i in range(0, len(boxes), 64)]).numpy()
+                return torch.cat([self.score(encode_boxes(events, t0_us, boxes[i:i + 64], cfg))
+                                  for i in range(0, len(boxes), 64)]).numpy()
         n = len(np.asarray(boxes_xywh).reshape(-1, 4))
-        b, step, pol, v, u = canvas_pixels(events, t0_us, boxes_xywh, cfg.input_size, cfg.steps, cfg.step_us)
+        b, step, pol, v, u = canvas_pixels(events, t0_us, boxes_xywh, cfg)
         ok = (v < cells * k) & (u < cells * k)  # beyond the last window: read by no conv1 cell
         b, step, pol, v, u = b[ok], step[ok], pol[ok], v[ok], u[ok]
         ch = 2 * step + pol if cfg.input == "bins" else pol  # "sum": each event-step adds its column once
@@ -121,10 +121,11 @@ class SCTNTwin(nn.Module):
         return h[:, 1].numpy()
 
 
-def canvas_pixels(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: int = 107, steps: int = 10,
-                  step_us: int = 1000) -> tuple[np.ndarray, ...]:
+def canvas_pixels(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray,
+                  cfg: NetworkConfig = PRESET) -> tuple[np.ndarray, ...]:
     """The nonzero entries of encode_boxes' tensor, each once: box index, step, polarity, canvas row, column
     (int64 arrays; the same mapping as sctn.encoding.encode_boxes, held equal by a test)."""
+    size, steps, step_us = cfg.input_size, cfg.steps, cfg.step_us
     boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
     empty = (np.zeros(0, np.int64),) * 5
     step = (np.asarray(events.t, np.int64) - int(t0_us)) // step_us

@@ -13,11 +13,15 @@ import numpy as np
 import torch
 
 from dvsot.events import EventBatch
+from sctn.network import NetworkConfig
+
+PRESET = NetworkConfig()  # the paper's canvas and time steps, when no network config is given
 
 
-def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, size: int = 107, steps: int = 10,
-                 step_us: int = 1000) -> torch.Tensor:
-    """Binary input tensor (N, steps, 2, size, size) float32 for N boxes (xywh pixels) of one segment."""
+def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, cfg: NetworkConfig = PRESET) -> torch.Tensor:
+    """Binary input tensor (N, steps, 2, size, size) float32 for N boxes (xywh pixels) of one segment; the canvas
+    size, steps and step length (us) are the network config's."""
+    size, steps, step_us = cfg.input_size, cfg.steps, cfg.step_us
     boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
     n = len(boxes)
     out = torch.zeros((n, steps, 2, size, size), dtype=torch.float32)
@@ -58,9 +62,10 @@ def box_canvas(boxes_xywh: np.ndarray, size: int = 107) -> np.ndarray:
 
 
 def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale: float, size_hw: tuple[int, int],
-                  steps: int = 10, step_us: int = 1000, tail_steps: int = 0) -> torch.Tensor:
+                  cfg: NetworkConfig = PRESET) -> torch.Tensor:
     """Binary input (1, steps + tail_steps, 2, H, W) of every event inside a sensor region, scaled by `scale`
-    (canvas px per px); the tail steps stay empty."""
+    (canvas px per px); the tail steps stay empty; steps, step length (us) and tail steps are the config's."""
+    steps, step_us, tail_steps = cfg.steps, cfg.step_us, cfg.tail_steps
     hgt, wid = size_hw
     out = torch.zeros((1, steps + tail_steps, 2, hgt, wid), dtype=torch.float32)
     if len(events) == 0:
@@ -76,19 +81,19 @@ def encode_region(events: EventBatch, t0_us: int, region_xywh: np.ndarray, scale
 
 
 def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_box_xywh: np.ndarray,
-                  receptive_field: tuple[int, int], size: int = 107, steps: int = 10, step_us: int = 1000,
-                  tail_steps: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+                  cfg: NetworkConfig = PRESET) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Fast-mode input: one region for all candidates, at the reference box's canvas scale.
 
-    receptive_field is SCTN.receptive_field(): (total stride, receptive-field size) of conv3's cells.
-    Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's
+    The network config gives the canvas size, the steps and conv3's receptive field (total stride,
+    receptive-field size: NetworkConfig.receptive_field). Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's
     top-left corner in region pixels (N, 2) and each candidate box in region pixels (N, 4). The
     region covers what the cells kept by some candidate see (a cell is kept when its receptive
     field's centre lies in the box): the candidate boxes plus half a receptive field, not the whole
     canvases. Its corner lies on one lattice of the total stride (the sensor lattice at scale 1,
     moved by whole cells), so every candidate shares one convolution grid.
     """
-    stride, rf = receptive_field
+    stride, rf = cfg.receptive_field()
+    size = cfg.input_size
     boxes = np.asarray(boxes_xywh, np.float64).reshape(-1, 4)
     scale = min(1.0, size / float(max(ref_box_xywh[2], ref_box_xywh[3])))
     centres = boxes[:, :2] + boxes[:, 2:] / 2
@@ -100,7 +105,7 @@ def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_bo
     corner = corner + skip * stride / scale
     far = (boxes[:, :2] + boxes[:, 2:] - corner).max(axis=0) * scale + rf / 2 + stride
     wid, hgt = (int(np.ceil(v)) + stride for v in far)
-    region = encode_region(events, t0_us, corner, scale, (hgt, wid), steps, step_us, tail_steps)
+    region = encode_region(events, t0_us, corner, scale, (hgt, wid), cfg)
     origins = ((centres - corner) * scale - size / 2).astype(np.float32)
     rboxes = np.concatenate([(boxes[:, :2] - corner) * scale, boxes[:, 2:] * scale], axis=1).astype(np.float32)
     return region, torch.from_numpy(origins), torch.from_numpy(rboxes)

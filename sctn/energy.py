@@ -71,7 +71,7 @@ def candidate_ops(model: SCTN, events, t0_us: int, boxes_xywh, batch: int = 64) 
         return float(sum(float(v.sum()) for v in rec["ac_ops"].values()))
     cfg, total = model.cfg, 0.0
     for i in range(0, len(boxes_xywh), batch):
-        x = encode_boxes(events, t0_us, boxes_xywh[i:i + batch], cfg.input_size, cfg.steps, cfg.step_us)
+        x = encode_boxes(events, t0_us, boxes_xywh[i:i + batch], cfg)
         total += count_synaptic_ops(model, x)["ac_ops_per_sample"] * len(x)
     return total
 

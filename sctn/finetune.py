@@ -35,12 +35,11 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
     for i in range(iters + search_iters):
         if i < iters:
             pick = rng.choice(len(boxes), min(batch, len(boxes)), replace=False)
-            x = encode_boxes(events, t0_us, boxes[pick], cfg.input_size, cfg.steps, cfg.step_us)
+            x = encode_boxes(events, t0_us, boxes[pick], cfg)
             vmax = model(x).max(dim=1).values
         else:
             pick = rng.choice(near, min(batch, len(near)), replace=False)
-            region, origins, rboxes = encode_search(events, t0_us, boxes[pick], box, model.receptive_field(),
-                                                    cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+            region, origins, rboxes = encode_search(events, t0_us, boxes[pick], box, cfg)
             vmax = model.forward_search(region, origins, rboxes, crop=crop).max(dim=1).values
         loss = voltage_loss(vmax, torch.from_numpy(iou[pick]), torch.from_numpy(pos[pick]), kind)
         opt.zero_grad()

@@ -45,6 +45,14 @@ class NetworkConfig(BaseModel):
     alpha_s: float = ALPHA_S
     surrogate_width: float = 1.0
 
+    def receptive_field(self) -> tuple[int, int]:
+        """(total stride, receptive-field size) of the last convolution's cells, in input pixels."""
+        stride, rf = 1, 1
+        for k, st in zip(self.kernels, self.strides):
+            rf += (k - 1) * stride
+            stride *= st
+        return stride, rf
+
     def conv_sizes(self) -> list[int]:
         """Spatial size after each convolution."""
         sizes, s = [], self.input_size
@@ -125,12 +133,8 @@ class SCTN(nn.Module):
         return v.transpose(0, 1), spikes
 
     def receptive_field(self) -> tuple[int, int]:
-        """(total stride, receptive-field size) of the last convolution's cells, in input pixels."""
-        stride, rf = 1, 1
-        for k, st in zip(self.cfg.kernels, self.cfg.strides):
-            rf += (k - 1) * stride
-            stride *= st
-        return stride, rf
+        """(total stride, receptive-field size) of the last convolution's cells, in input pixels (its config's)."""
+        return self.cfg.receptive_field()
 
     def forward_search(self, region: torch.Tensor, origins: torch.Tensor, boxes: torch.Tensor,
                        record: bool = False, crop: str = "bilinear"

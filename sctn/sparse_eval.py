@@ -132,7 +132,7 @@ def dense_candidate_voltages(model: SCTN, events: EventBatch, t0_us: int, boxes_
     cfg = model.cfg
     boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
     with torch.no_grad():
-        parts = [model(encode_boxes(events, t0_us, boxes[i:i + chunk], cfg.input_size, cfg.steps, cfg.step_us))
+        parts = [model(encode_boxes(events, t0_us, boxes[i:i + chunk], cfg))
                  for i in range(0, len(boxes), chunk)]
     return torch.cat(parts) if parts else torch.zeros(0, cfg.steps + cfg.tail_steps, 2)
 

@@ -101,8 +101,7 @@ class SCTNTracker:
                 # event-driven, equal to the dense evaluation; the dense one for a model where it would not be
                 v, self.candidate_path = per_candidate_voltages(self.model, events, t0_us, boxes)
                 return v[:, :, 1].max(dim=1).values.numpy()
-            region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, self.model.receptive_field(),
-                                                    cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+            region, origins, rboxes = encode_search(events, t0_us, boxes, self.box, cfg)
             v = self.model.forward_search(region, origins, rboxes, crop=self.crop)
             return v[:, :, 1].max(dim=1).values.numpy()
 

@@ -112,7 +112,7 @@ def segment_batch(items: list[tuple[EventBatch, int, np.ndarray]], image_wh: lis
     xs, ious, pos = [], [], []
     for (events, t0, box), wh in zip(items, image_wh):
         boxes, iou, p = labelled_samples(rng, box, specs, wh)
-        xs.append(encode_boxes(events, t0, boxes, net_cfg.input_size, net_cfg.steps, net_cfg.step_us))
+        xs.append(encode_boxes(events, t0, boxes, net_cfg))
         ious.append(iou)
         pos.append(p)
     return torch.cat(xs), torch.from_numpy(np.concatenate(ious)), torch.from_numpy(np.concatenate(pos))

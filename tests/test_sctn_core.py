@@ -156,7 +156,7 @@ def test_loss_values_by_hand():
 def test_encoding_places_events_at_the_right_pixel_step_and_channel():
     ev = EventBatch(np.array([50, 52, 10], np.uint16), np.array([40, 41, 10], np.uint16),
                     np.array([1_000, 3_500, 2_000]), np.array([1, 0, 1], np.uint8))
-    x = encode_boxes(ev, 0, np.array([[40, 30, 20, 20], [0, 0, 400, 300]]), size=107, steps=10)
+    x = encode_boxes(ev, 0, np.array([[40, 30, 20, 20], [0, 0, 400, 300]]), NetworkConfig(input_size=107, steps=10))
     assert x.shape == (2, 10, 2, 107, 107)
     # box 0 centred at (50, 40): pixel centre (50.5, 40.5) -> canvas (54, 54) at step 1, ON;
     # (52.5, 41.5) -> (56, 55) at step 3, OFF; (10, 10) is outside box 0
@@ -324,7 +324,8 @@ def test_search_region_covers_what_the_kept_cells_see():
                     np.sort(rng.integers(0, 10_000, n_ev)), rng.integers(0, 2, n_ev).astype(np.uint8))
     for ref in (np.array([140.0, 100.0, 30.0, 40.0]), np.array([100.0, 60.0, 150.0, 120.0])):  # scale 1 and < 1
         boxes = propose(rng, ref, 64, "gaussian", TRACK.trans, TRACK.scale, (320, 240))
-        region, origins, rboxes = encode_search(ev, 0, boxes, ref, net.receptive_field(), tail_steps=2)
+        tail2 = net.cfg.model_copy(update={"tail_steps": 2})
+        region, origins, rboxes = encode_search(ev, 0, boxes, ref, tail2)
         scale = min(1.0, 107 / ref[2:].max())
         corner = boxes[0, :2] - rboxes[0, :2].numpy() / scale
         canvases = (np.ptp(boxes[:, 0]) * scale + 107) * (np.ptp(boxes[:, 1]) * scale + 107)
@@ -333,7 +334,7 @@ def test_search_region_covers_what_the_kept_cells_see():
         # the same search on a region 3 cells larger on every side (the whole canvases and more)
         pad = 3 * 8
         big = encode_region(ev, 0, corner - pad / scale, scale, (region.shape[-2] + 2 * pad, region.shape[-1] + 2 * pad),
-                            tail_steps=2)
+                            tail2)
         for crop in ("nearest", "bilinear"):
             with torch.no_grad():
                 v = net.forward_search(region, origins, rboxes, crop=crop)

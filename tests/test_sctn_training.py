@@ -74,8 +74,10 @@ def test_ops_penalty_trains_a_network_that_drives_fewer_synaptic_operations(trai
     with Dataset(test_file) as ds:
         seg = ds.segment(5)
         from sctn.encoding import encode_boxes
+        from sctn.network import NetworkConfig
 
-        x = encode_boxes(seg.events, seg.t0_us, seg.box[None].astype(np.float64), 107, 10, 1000)
+        x = encode_boxes(seg.events, seg.t0_us, seg.box[None].astype(np.float64),
+                         NetworkConfig(input_size=107, steps=10, step_us=1000))
     plain_ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
     frugal_ops = count_synaptic_ops(frugal, x)["ac_ops_per_sample"]
     assert np.mean(ops[-3:]) < 0.7 * np.mean(ops[:3]) and frugal_ops < 0.7 * plain_ops

@@ -60,7 +60,7 @@ def _boxes(seed: int, n: int = 48) -> np.ndarray:
 
 
 def _dense_record(net: SCTN, events: EventBatch, boxes: np.ndarray):
-    x = encode_boxes(events, 0, boxes, steps=net.cfg.steps)
+    x = encode_boxes(events, 0, boxes, NetworkConfig(steps=net.cfg.steps))
     with torch.no_grad():
         return net.forward_record(x)
 
@@ -68,7 +68,8 @@ def _dense_record(net: SCTN, events: EventBatch, boxes: np.ndarray):
 def _check_equal(net: SCTN, events: EventBatch, boxes: np.ndarray, t0_us: int = 0) -> dict:
     """Assert the sparse record equals the dense one: voltages, every layer's spikes; return the dense counts."""
     v, rec = candidate_record(net, events, t0_us, boxes)
-    x = encode_boxes(events, t0_us, boxes, net.cfg.input_size, net.cfg.steps, net.cfg.step_us)
+    x = encode_boxes(events, t0_us, boxes, NetworkConfig(input_size=net.cfg.input_size, steps=net.cfg.steps,
+                                                         step_us=net.cfg.step_us))
     with torch.no_grad():
         v_dense, spikes = net.forward_record(x)
     assert v.shape == v_dense.shape

@@ -186,12 +186,11 @@ def main() -> None:
             seg = ds.segment(len(ds.segment_boxes()) // 2)
             wh = (ds.width, ds.height)
         cfg = model.cfg
-        x = encode_boxes(seg.events, seg.t0_us, seg.box[None], cfg.input_size, cfg.steps, cfg.step_us)
+        x = encode_boxes(seg.events, seg.t0_us, seg.box[None], cfg)
         ops = count_synaptic_ops(model, x)["ac_ops_per_sample"]
         boxes = propose(np.random.default_rng(0), seg.box.astype(np.float64), TRACK.n, "gaussian", TRACK.trans,
                         TRACK.scale, wh)
-        inputs = encode_search(seg.events, seg.t0_us, boxes, seg.box, model.receptive_field(), cfg.input_size,
-                               cfg.steps, cfg.step_us, cfg.tail_steps)
+        inputs = encode_search(seg.events, seg.t0_us, boxes, seg.box, cfg)
         search = {crop: count_search_ops(model, *inputs, crop=crop) for crop in ("nearest", "bilinear")}
     print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"),
                       "network": {"channels": cfg.channels, "fc": cfg.fc}, "runs": runs,

@@ -74,8 +74,7 @@ class SCTNBenchTracker(Tracker):
         model, cfg = self.tracker.model, self.tracker.model.cfg
         candidates, ref_box = self.tracker.last_search
         if self.tracker.fast:
-            inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, model.receptive_field(),
-                                   cfg.input_size, cfg.steps, cfg.step_us, cfg.tail_steps)
+            inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, cfg)
             ops = count_search_ops(model, *inputs, crop=self.tracker.crop)
             return {"ac_ops": ops["ac_ops"], "mac_ops": ops["mac_ops"], "energy_pj": ops["energy_pj"]}
         ops = candidate_ops(model, segment.events, segment.t0_us, candidates)
