@@ -33,6 +33,7 @@ from torch.nn import functional as F
 
 from dvsot.events import EventBatch
 from sctn.encoding import PRESET, encode_boxes
+from sctn.energy import count_macs
 from sctn.network import NetworkConfig
 
 KIND = "sctn_ann"
@@ -150,24 +151,6 @@ def canvas_pixels(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray,
     return b, s, p, v, u
 
 
-def count_macs(fn, *inputs: torch.Tensor) -> dict:
-    """Multiply-accumulates of one call fn(*inputs) (a module or any function of modules), counted by torch's FLOP
-    counter on the operations that run (MAC = FLOPs / 2): {"mac_ops": total, "by_layer": {module: MACs}}."""
-    from torch.utils.flop_counter import FlopCounterMode
-
-    counter = FlopCounterMode(display=False)
-    with counter, torch.no_grad():
-        fn(*inputs)
-    counts = counter.get_flop_counts()
-    # leaves only (a parent module's count includes its children's): "SCTNTwin.convs.0", not "SCTNTwin.convs"
-    by_layer = {name: sum(ops.values()) / 2 for name, ops in counts.items()
-                if name != "Global" and not any(other.startswith(name + ".") for other in counts)}
-    rest = counter.get_total_flops() / 2 - sum(by_layer.values())
-    if rest > 0:  # functional calls outside any module (SiamFC's cross-correlation)
-        by_layer["functional"] = rest
-    return {"mac_ops": counter.get_total_flops() / 2, "by_layer": by_layer}
-
-
 def twin_macs(model: SCTNTwin) -> dict:
     """MACs of one candidate evaluation of the twin, in total and per layer (counted on a 1-candidate batch)."""
     cfg = model.cfg
@@ -177,14 +160,12 @@ def twin_macs(model: SCTNTwin) -> dict:
 def train_twin(files: list[Path], cfg, progress: bool = True) -> tuple[SCTNTwin, dict]:
     """Train a new twin exactly as sctn.train.train trains SCTN (same segments, samples, loss, optimiser, budget);
     cfg is a sctn.train.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins")."""
-    from dataclasses import replace
-
     from sctn.train import train
 
     if cfg.ops_penalty > 0:
         raise ValueError("the ANN twin has no spikes to penalise: ops_penalty must be 0")
     if not isinstance(cfg.network, TwinConfig):
-        cfg = replace(cfg, network=TwinConfig(**cfg.network.model_dump()))
+        cfg = cfg.model_copy(update={"network": TwinConfig(**cfg.network.model_dump())})
     return train(files, cfg, progress=progress, build=SCTNTwin)
 
 
@@ -197,17 +178,7 @@ def default_twin_path() -> Path:
 
 def load_twin(path: str | os.PathLike | None = None) -> tuple[SCTNTwin, dict]:
     """The twin and metadata of a sctn_ann checkpoint (the shipped one if path is None); UserError if unusable."""
-    from dvsot.errors import UserError, exception_line
-    from sctn.checkpoint import read_checkpoint
+    from sctn.checkpoint import load_model
 
-    p = Path(path) if path is not None else default_twin_path()
-    if path is None and not p.is_file():
-        raise UserError(f"{p}: no such checkpoint (train one with `dvsot train --model sctn_ann`)")
-    blob = read_checkpoint(p, KIND, "sctn_ann", article="an")
-    try:
-        model = SCTNTwin(TwinConfig(**blob["config"]))
-        model.load_state_dict(blob["state_dict"])
-    except Exception as exc:  # a config or tensors that do not fit the twin
-        raise UserError(f"{p}: not a usable sctn_ann checkpoint ({exception_line(exc, 200)})") from None
-    model.eval()
-    return model, blob.get("meta", {})
+    return load_model(path, default_twin_path(), KIND, "sctn_ann", lambda blob: SCTNTwin(TwinConfig(**blob["config"])),
+                      article="an")

@@ -6,10 +6,11 @@ import json
 import os
 import warnings
 from pathlib import Path
+from typing import Callable
 
 import torch
 
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 from dvsot.outputs import replacing, run_outputs
 from dvsot.validate import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
@@ -99,12 +100,35 @@ def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str
     return blob
 
 
-def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
-    """The model and metadata of a checkpoint (the shipped default if path is None); UserError if unusable."""
-    p = Path(path) if path is not None else default_checkpoint_path()
+def stored_checkpoint(path: str | os.PathLike | None, default: Path, kind: str, label: str,
+                      article: str = "a") -> tuple[Path, dict]:
+    """The file and stored dict of a `kind` checkpoint (`default` if path is None); UserError naming the file if it
+    is missing or not such a checkpoint (read_checkpoint)."""
+    p = Path(path) if path is not None else default
     if path is None and not p.is_file():
-        raise UserError(f"{p}: no such checkpoint (train one with `dvsot train`)")
-    blob = read_checkpoint(p, "sctn", "SCTN", article="an")
+        how = "`dvsot train`" if kind == "sctn" else f"`dvsot train --model {kind}`"
+        raise UserError(f"{p}: no such checkpoint (train one with {how})")
+    return p, read_checkpoint(p, kind, label, article=article)
+
+
+def load_model(path: str | os.PathLike | None, default: Path, kind: str, label: str,
+               build: Callable[[dict], torch.nn.Module], article: str = "a") -> tuple[torch.nn.Module, dict]:
+    """The network and metadata of a `kind` checkpoint (`default` if path is None): `build(blob)` makes the network
+    from the stored dict, then its weights are loaded; UserError naming the file if it is missing or unusable."""
+    p, blob = stored_checkpoint(path, default, kind, label, article)
+    try:
+        model = build(blob)
+        model.load_state_dict(blob["state_dict"])
+    except Exception as exc:  # a config or tensors that do not fit the network
+        raise UserError(f"{p}: not a usable {label} checkpoint ({exception_line(exc, 200)})") from None
+    model.eval()
+    return model, blob.get("meta", {})
+
+
+def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
+    """The model and metadata of a checkpoint (the shipped default if path is None); UserError if it is missing or
+    not an SCTN checkpoint (a config or tensors that do not fit raise as they are: dvsot bench words them)."""
+    p, blob = stored_checkpoint(path, default_checkpoint_path(), "sctn", "SCTN", article="an")
     config = dict(blob["config"])
     if "bias" not in config:  # written before the layers' bias became a setting: biased if it has bias tensors
         config["bias"] = any(k.endswith(".bias") for k in blob["state_dict"])

@@ -4,7 +4,7 @@ SNN: every spike costs one accumulate (AC) per synapse it drives (its fan-out): 
 conv1, each layer's spikes into the next; the output layer's spikes drive nothing. A convolution's
 fan-out per input pixel is (out channels) x (number of output positions whose kernel covers the
 pixel); a fully connected layer's is its output width. ANN MACs are counted on the layers that run
-(sctn/ann.py count_macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
+(count_macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
 """
 
 from __future__ import annotations
@@ -119,3 +119,21 @@ def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, b
 def energy_pj(ac_ops: float = 0.0, mac_ops: float = 0.0, e_ac: float = E_AC_PJ, e_mac: float = E_MAC_PJ) -> dict:
     """E = n_AC e_AC + n_MAC e_MAC in picojoules (eq. 13-14)."""
     return {"ac_ops": ac_ops, "mac_ops": mac_ops, "energy_pj": ac_ops * e_ac + mac_ops * e_mac}
+
+
+def count_macs(fn, *inputs: torch.Tensor) -> dict:
+    """Multiply-accumulates of one call fn(*inputs) (a module or any function of modules), counted by torch's FLOP
+    counter on the operations that run (MAC = FLOPs / 2): {"mac_ops": total, "by_layer": {module: MACs}}."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    counter = FlopCounterMode(display=False)
+    with counter, torch.no_grad():
+        fn(*inputs)
+    counts = counter.get_flop_counts()
+    # leaves only (a parent module's count includes its children's): "SCTNTwin.convs.0", not "SCTNTwin.convs"
+    by_layer = {name: sum(ops.values()) / 2 for name, ops in counts.items()
+                if name != "Global" and not any(other.startswith(name + ".") for other in counts)}
+    rest = counter.get_total_flops() / 2 - sum(by_layer.values())
+    if rest > 0:  # functional calls outside any module (SiamFC's cross-correlation)
+        by_layer["functional"] = rest
+    return {"mac_ops": counter.get_total_flops() / 2, "by_layer": by_layer}

@@ -17,12 +17,15 @@ below theta - 0.3 on positives; constant feedback). Tracking reads only the targ
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import torch
 
 from sctn.neurons import THETA
 
 NEGATIVE_FEEDBACK = -0.3
-LOSS_KINDS = ("exp", "linear", "basic")
+LossKind = Literal["exp", "linear", "basic"]
+LOSS_KINDS: tuple[str, ...] = get_args(LossKind)
 
 
 def feedback(iou: torch.Tensor, positive: torch.Tensor, kind: str = "exp") -> torch.Tensor:

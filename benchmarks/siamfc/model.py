@@ -98,17 +98,6 @@ def default_siamfc_path() -> Path:
 
 def load_siamfc(path: str | os.PathLike | None = None) -> tuple[SiamFC, dict]:
     """The network and metadata of a siamfc checkpoint (the shipped one if path is None); UserError if unusable."""
-    from dvsot.errors import UserError, exception_line
-    from sctn.checkpoint import read_checkpoint
+    from sctn.checkpoint import load_model
 
-    p = Path(path) if path is not None else default_siamfc_path()
-    if path is None and not p.is_file():
-        raise UserError(f"{p}: no such checkpoint (train one with `dvsot train --model siamfc`)")
-    blob = read_checkpoint(p, KIND, "siamfc")
-    try:
-        model = SiamFC(SiamFCConfig(**blob["config"]))
-        model.load_state_dict(blob["state_dict"])
-    except Exception as exc:  # a config or tensors that do not fit the network
-        raise UserError(f"{p}: not a usable siamfc checkpoint ({exception_line(exc, 200)})") from None
-    model.eval()
-    return model, blob.get("meta", {})
+    return load_model(path, default_siamfc_path(), KIND, "siamfc", lambda blob: SiamFC(SiamFCConfig(**blob["config"])))

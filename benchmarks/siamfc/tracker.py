@@ -54,7 +54,7 @@ def upsample(response: np.ndarray, factor: int) -> np.ndarray:
 def frame_macs(model: SiamFC, scale_num: int = 3, response_up: int = 16) -> dict:
     """MACs of one update, counted on the layers that run (backbone on the scale pyramid, cross-correlation), plus
     the bicubic upsampling (16 per output pixel per scale) and the window mix (1 per pixel); and of one init."""
-    from sctn.ann import count_macs
+    from sctn.energy import count_macs
 
     cfg = model.cfg
     x = torch.zeros(scale_num, 1, cfg.search_size, cfg.search_size)

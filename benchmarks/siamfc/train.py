@@ -12,67 +12,33 @@ half each (SiamFC). Adam. Frames are computed once per segment and kept sparse.
 
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
+from pydantic import Field
 from torch.nn import functional as F
 
 from benchmarks.atsltd import atsltd_frame
 from benchmarks.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
+from sctn.trainloop import TrainBudget, fit, held_out, spread
 
 
-@dataclass
-class SiamFCTrainConfig:
-    """SiamFC training settings: pairs (one search segment each), optimiser, augmentation, budget."""
+class SiamFCTrainConfig(TrainBudget):
+    """SiamFC training settings: TrainBudget's (pairs: one search segment each, optimiser, budget) with SiamFC's
+    defaults, the pairs' gap and augmentation, the label radius and the network."""
 
-    epochs: int = 20
-    segments_per_epoch: int | None = 400  # search segments (training pairs) per epoch
-    batch_segments: int = 8  # pairs per step
-    lr: float = 1e-3
-    seed: int = 0
-    max_gap: int = 100  # segments between exemplar and search
-    shift_px: float = 8.0
-    stretch: float = 0.05
-    radius_px: float = 16.0
-    min_box_px: float = 8.0
-    val_every: int = 50
-    val_segments: int = 40
-    max_minutes: float | None = None
-    network: SiamFCConfig = field(default_factory=SiamFCConfig)
-
-    def __post_init__(self) -> None:
-        from sctn.train import TrainConfigError
-
-        problem = config_problem(self)
-        if problem:
-            raise TrainConfigError(*problem)
-
-
-def config_problem(cfg: SiamFCTrainConfig) -> tuple[str, str] | None:
-    """The first out-of-range field of cfg and what is wrong with it, or None."""
-    for name in ("epochs", "batch_segments", "val_every", "max_gap"):
-        if getattr(cfg, name) < 1:
-            return name, f"must be >= 1, got {getattr(cfg, name)}"
-    if cfg.segments_per_epoch is not None and cfg.segments_per_epoch < 1:
-        return "segments_per_epoch", f"must be >= 1, got {cfg.segments_per_epoch}"
-    if cfg.val_segments < 0:
-        return "val_segments", f"must be >= 0, got {cfg.val_segments}"
-    if not (math.isfinite(cfg.lr) and cfg.lr > 0):
-        return "lr", f"must be positive and finite, got {cfg.lr}"
-    if not 0 <= cfg.seed < 2**63 - 1:
-        return "seed", f"must be >= 0 (and below 2**63 - 1), got {cfg.seed}"
-    if cfg.max_minutes is not None and not (math.isfinite(cfg.max_minutes) and cfg.max_minutes > 0):
-        return "max_minutes", f"must be positive and finite, got {cfg.max_minutes}"
-    for name in ("shift_px", "stretch", "radius_px", "min_box_px"):
-        v = getattr(cfg, name)
-        if not (math.isfinite(v) and v >= 0):
-            return name, f"must be >= 0 and finite, got {v}"
-    return None
+    epochs: int = Field(20, ge=1)
+    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
+    batch_segments: int = Field(8, ge=1)  # pairs per step
+    lr: float = Field(1e-3, gt=0)
+    max_gap: int = Field(100, ge=1)  # segments between exemplar and search
+    shift_px: float = Field(8.0, ge=0)
+    stretch: float = Field(0.05, ge=0)
+    radius_px: float = Field(16.0, ge=0)
+    network: SiamFCConfig = Field(default_factory=SiamFCConfig)
 
 
 @dataclass
@@ -169,69 +135,34 @@ def evaluate(model: SiamFC, batch: tuple[torch.Tensor, ...]) -> dict:
 
 def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True) -> tuple[SiamFC, dict]:
     """Train a new SiamFC on the given dataset files; returns the model and a history of metrics."""
-    from tqdm import tqdm
-
     rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
     seqs = [load_frames(f, cfg.min_box_px) for f in files]
     train_items, val_items, pools = [], [], []
     for s, fr in enumerate(seqs):
-        ks = np.arange(len(fr.segments))
-        pools.append(ks[ks % 10 != 0])  # exemplars come from training segments only
-        val_items += [(s, int(k)) for k in ks[::10]]
-        train_items += [(s, int(k)) for k in ks if k % 10 != 0]
+        fit_ks, val_ks = held_out(np.arange(len(fr.segments)))
+        pools.append(fit_ks)  # exemplars come from training segments only
+        val_items += [(s, int(k)) for k in val_ks]
+        train_items += [(s, int(k)) for k in fit_ks]
     if not train_items:
         raise ValueError("no training segments with a ground-truth box")
     model = SiamFC(cfg.network)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     val_rng = np.random.default_rng(cfg.seed + 1)
-    val_pick = []
-    if val_items:
-        spread = np.linspace(0, len(val_items) - 1, min(cfg.val_segments, len(val_items))).astype(int)
-        val_pick = [val_items[i] for i in spread]
+    val_pick = spread(val_items, cfg.val_segments)
     val_batch = None
     if val_pick:
         items = [(s, partner(val_rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in val_pick]
         val_batch = make_batch(items, seqs, val_rng, cfg)
-    history: dict = {"train_loss": [], "val": []}
-    start = time.monotonic()
-    step = 0
-    per_epoch = min(len(train_items), cfg.segments_per_epoch or len(train_items))
-    bar = tqdm(total=cfg.epochs * (per_epoch // cfg.batch_segments), unit="batch", disable=not progress,
-               desc="train siamfc")
-    stop = False
-    for epoch in range(cfg.epochs):
-        order = rng.permutation(len(train_items))[:per_epoch]
-        for b in range(0, len(order) - cfg.batch_segments + 1, cfg.batch_segments):
-            picks = [train_items[k] for k in order[b:b + cfg.batch_segments]]
-            items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
-            z, x, labels, weights = make_batch(items, seqs, rng, cfg)
-            model.train()
-            loss = logistic_loss(model(z, x), labels, weights)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            history["train_loss"].append(float(loss.detach()))
-            step += 1
-            bar.update(1)
-            bar.set_postfix(epoch=epoch, loss=f"{history['train_loss'][-1]:.4f}", refresh=False)
-            if val_batch is not None and step % cfg.val_every == 0:
-                model.eval()
-                m = evaluate(model, val_batch)
-                m["step"] = step
-                history["val"].append(m)
-                bar.write(f"step {step}: val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px")
-            if cfg.max_minutes is not None and time.monotonic() - start > 60 * cfg.max_minutes:
-                stop = True
-                break
-        if stop:
-            break
-    bar.close()
-    model.eval()
-    if val_batch is not None:
-        final = evaluate(model, val_batch)
-        final["step"] = step
-        history["val"].append(final)
-    history.update(steps=step, minutes=(time.monotonic() - start) / 60, train_segments=len(train_items),
-                   val_segments=len(val_pick))
+
+    def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
+        items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
+        z, x, labels, weights = make_batch(items, seqs, rng, cfg)
+        return logistic_loss(model(z, x), labels, weights), {}
+
+    history = fit(model, opt, train_items, cfg, rng, step_loss,
+                  (lambda: evaluate(model, val_batch)) if val_batch is not None else None,
+                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px",
+                  {"train_loss": [], "val": []}, progress, "train siamfc")
+    history.update(train_segments=len(train_items), val_segments=len(val_pick))
     return model, history
