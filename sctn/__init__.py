@@ -1,7 +1,7 @@
 """SCTN: the spiking convolutional tracking network (C-LIF neurons, STCA-style training, tracking, energy).
 
 Public names (each imported on first use): the model `SCTN` and its `NetworkConfig`, the tracker
-`SCTNTracker`, training (`train`, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
+`SCTNTracker` and its `SCTNParams`, training (`train`, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
 `save_checkpoint`).
 """
 
@@ -11,6 +11,7 @@ _API = {
     "SCTN": "sctn.network",
     "NetworkConfig": "sctn.network",
     "SCTNTracker": "sctn.tracker",
+    "SCTNParams": "sctn.params",
     "train": "sctn.train",
     "TrainConfig": "sctn.train",
     "finetune": "sctn.finetune",

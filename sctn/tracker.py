@@ -51,13 +51,13 @@ class SCTNTracker:
         """`model`: a network or a checkpoint path (the shipped one if None); `params` (SCTNParams), with any of
         its fields given as keywords on top (SCTNTracker(model, seed=1, fast=True)); bad values raise
         pydantic's ValidationError naming the field."""
+        self.params = p = SCTNParams(**{**(params.model_dump() if params is not None else {}), **settings})
         if model is None or isinstance(model, (str, os.PathLike)):
             from sctn.checkpoint import load_checkpoint
 
             model, _ = load_checkpoint(model)
         self.base = model
         self.model: SCTN = model
-        self.params = p = SCTNParams(**{**(params.model_dump() if params is not None else {}), **settings})
         self.seed, self.fast, self.finetune_iters, self.crop = p.seed, p.fast, p.finetune_iters, p.crop
         self.finetune_search_iters = p.finetune_search_iters if p.fast else 0
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = (p.n_candidates, p.trans, p.trans_growth,
