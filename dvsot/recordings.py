@@ -103,13 +103,19 @@ def read_box_file(path: str | os.PathLike, width: int, height: int) -> BoxFile:
     return BoxFile(xywh.astype(np.float32), t, lines, p)
 
 
+def _per_box(p: Path, what: str, plural: str, count: int) -> tuple[np.ndarray, list[int]]:
+    """One number per line of a text file, one line per box: the values and their line numbers; UserError if the
+    file holds another count."""
+    rows, lines = _numbers(p, what, (1,))
+    if len(rows) != count:
+        raise UserError(f"{p}: {len(rows)} {plural} for {count} boxes (one per line, one per box)")
+    return rows[:, 0], lines
+
+
 def read_box_times(path: str | os.PathLike, count: int) -> np.ndarray:
     """Annotation times, one integer microsecond per line, strictly increasing, one per box."""
     p = Path(path)
-    rows, lines = _numbers(p, "annotation times (integer microseconds)", (1,))
-    t = rows[:, 0]
-    if len(t) != count:
-        raise UserError(f"{p}: {len(t)} annotation times for {count} boxes (one per line, one per box)")
+    t, lines = _per_box(p, "annotation times (integer microseconds)", "annotation times", count)
     bad = np.flatnonzero((t != np.floor(t)) | (np.abs(t) >= 2 ** 62))
     if len(bad):
         raise UserError(f"{p}:{lines[bad[0]]}: {t[bad[0]]:g} is not an integer number of microseconds")
@@ -119,10 +125,7 @@ def read_box_times(path: str | os.PathLike, count: int) -> np.ndarray:
 def read_absent(path: str | os.PathLike, count: int) -> np.ndarray:
     """Absent flags, one 0/1 per line and box (1 = the target is absent)."""
     p = Path(path)
-    rows, lines = _numbers(p, "absent flags (0 or 1)", (1,))
-    flags = rows[:, 0]
-    if len(flags) != count:
-        raise UserError(f"{p}: {len(flags)} absent flags for {count} boxes (one per line, one per box)")
+    flags, lines = _per_box(p, "absent flags (0 or 1)", "absent flags", count)
     bad = np.flatnonzero((flags != 0) & (flags != 1))
     if len(bad):
         raise UserError(f"{p}:{lines[bad[0]]}: {flags[bad[0]]:g}, expected 0 (present) or 1 (absent)")
