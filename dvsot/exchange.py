@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 
 # suffix -> format; .raw is EVT 3 unless told otherwise (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
@@ -101,7 +101,7 @@ def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_ve
         width, height = stream.dimensions()
         a = stream.to_array()
     except Exception as exc:  # faery's decoders raise bare Exceptions with their own messages
-        raise UserError(f"{path}: cannot read {kind.upper()} events ({' '.join(str(exc).split())})") from None
+        raise UserError(f"{path}: cannot read {kind.upper()} events ({exception_line(exc, kind=False)})") from None
     if size is not None and (width, height) != tuple(size):
         raise UserError(f"{path}: the file says {width}x{height} pixels, {size_label} says {size[0]}x{size[1]}")
     return EventFile(a["t"].astype(np.int64), a["x"], a["y"], a["on"].astype(np.uint8), int(width), int(height), path)

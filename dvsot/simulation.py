@@ -14,6 +14,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from dvsot.dataset import DatasetWriter
+from dvsot.defaults import SEGMENT_US
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
 
@@ -51,7 +52,7 @@ BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)]): box samples 
 
 
 def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,
-                   attrs: dict, segment_us: int = 10_000, *, source: str = "frames", is_log: bool = False,
+                   attrs: dict, segment_us: int = SEGMENT_US, *, source: str = "frames", is_log: bool = False,
                    boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
                    desc: str | None = None, bar_after_error: bool = True) -> tuple[Path, SimulationCounts]:
     """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.

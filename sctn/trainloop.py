@@ -9,7 +9,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, Field, ValidationError
+
+from dvsot.strict import Strict
 
 HELD_OUT_EVERY = 10  # every 10th usable segment of each file is a validation segment, never a training one
 
@@ -22,12 +24,10 @@ class TrainConfigError(ValueError):
         self.field, self.problem = field_name, problem
 
 
-class TrainBudget(BaseModel):
+class TrainBudget(Strict):
     """Settings every trainer has: epochs, segments per epoch and per step, Adam's rate, seed, the smallest usable
     box (px), validation (every N steps, on M segments) and a time budget (minutes). Bad values raise
-    TrainConfigError naming the first bad field."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    TrainConfigError naming the first bad field (numbers are not strict here: Python callers pass numpy ones)."""
 
     epochs: int = Field(3, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)

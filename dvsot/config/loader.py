@@ -12,7 +12,7 @@ from pydantic import ValidationError
 
 from dvsot import validate, yamlio
 from dvsot.config.schema import Material, SceneConfig
-from dvsot.errors import UserError
+from dvsot.errors import UserError, exception_line
 from dvsot.scene_checks import scene_problems
 
 
@@ -180,7 +180,7 @@ def _read_image(path: Path) -> None:
             with OpenEXR.File(str(path)) as f:
                 ok = any(part.channels for part in f.parts)
         except Exception as exc:  # OpenEXR raises several kinds for damaged files
-            raise UserError(f"{path}: cannot read image ({' '.join(str(exc).split())[:200]})") from None
+            raise UserError(f"{path}: cannot read image ({exception_line(exc, 200, kind=False)})") from None
     else:
         from dvsot.frames import imread
 
