@@ -20,6 +20,9 @@ REFRACTORY_SLACK_US = 1e-6
 # Intervals longer than this (microseconds) are time-ordered by a stable merge sort instead of a
 # counting sort over every microsecond of the interval.
 MAX_COUNTING_US = 1 << 22
+# Buckets of the index that turns a pixel's reference into the codes it may fire at (code_index): finer
+# than an 8-bit log table's steps, so its bounds are a code or two wider than the exact ones.
+CODE_BUCKETS = 4096
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -101,14 +104,15 @@ def _emit(i, l1, l0, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, 
 
 
 @numba.njit(cache=True, nogil=True)
-def coded_interval_events(codes, table, last_codes, base, off, ref, lo_code, hi_code, gate_on, gate_off, cp, cn,
-                          last_event, refractory_us, t0, t1, width, scratch):
+def coded_interval_events(codes, table, last_codes, base, off, ref, lo_code, hi_code, first_ge, last_le, t_lo, inv_w,
+                          gate_on, gate_off, cp, cn, last_event, refractory_us, t0, t1, width, scratch):
     """interval_events for frames given as integer codes into table (log intensity per code): x, y, t (us), p.
 
     codes and last_codes are this and the previous frame (flat uint8 or uint16). A pixel can fire only if
-    its code lies outside (lo_code, hi_code), the codes whose log intensity is within the gates of its
-    reference (code_bounds); so the first pass reads a few bytes a pixel and no log intensity. The
-    bounds of the pixels that fire are updated here.
+    its code lies outside (lo_code, hi_code), codes whose log intensity is within the gates of its
+    reference (code_bounds, from the table's bucket index first_ge, last_le, t_lo, inv_w: code_index); so
+    the first pass reads a few bytes a pixel and no log intensity. The bounds of the pixels that fire
+    are updated here.
     """
     n_cand = 0
     bound = 0
@@ -127,39 +131,43 @@ def coded_interval_events(codes, table, last_codes, base, off, ref, lo_code, hi_
         i = scratch[j]
         ne = _emit(i, table[codes[i]], table[last_codes[i]], base, off, ref, cp, cn, last_event, refractory_us, t0,
                    t1, code, trel, ne)
-        lo_code[i], hi_code[i] = _code_bounds(table, ref[i], gate_on[i], gate_off[i])
+        lo_code[i], hi_code[i] = _code_bounds(ref[i], gate_on[i], gate_off[i], first_ge, last_le, t_lo, inv_w)
     return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _code_bounds(table, r, g_on, g_off):
-    """(lo, hi): the last code with table[c] - r <= -g_off (-1 if none), the first with table[c] - r >= g_on (len if none).
+def code_index(table: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(first_ge, last_le, t_lo, inv_w): a bucket index of an increasing table for _code_bounds (numpy, once per table).
 
-    The same comparisons as interval_events' first pass; table increases, so they split the codes in three.
+    CODE_BUCKETS equal buckets of log intensity span the table; first_ge[b] is the first code whose value
+    is at least the bucket's start t_lo + b / inv_w, last_le[b] the last code at most that value.
     """
-    a, b = 0, table.shape[0]
-    while a < b:
-        m = (a + b) >> 1
-        if table[m] - r >= g_on:
-            b = m
-        else:
-            a = m + 1
-    hi = a
-    a, b = 0, table.shape[0]
-    while a < b:
-        m = (a + b) >> 1
-        if table[m] - r <= -g_off:
-            a = m + 1
-        else:
-            b = m
-    return a - 1, hi
+    t_lo, t_hi = float(table[0]), float(table[-1])
+    inv_w = CODE_BUCKETS / max(t_hi - t_lo, 1e-300)
+    starts = t_lo + np.arange(CODE_BUCKETS + 2) / inv_w
+    first_ge = np.searchsorted(table, starts, side="left").astype(np.int32)
+    last_le = (np.searchsorted(table, starts, side="right") - 1).astype(np.int32)
+    return first_ge, last_le, t_lo, inv_w
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _code_bounds(r, g_on, g_off, first_ge, last_le, t_lo, inv_w):
+    """(lo, hi) codes for reference r: a pixel whose code c has table[c] - r >= g_on has c >= hi, one with
+    table[c] - r <= -g_off has c <= lo.
+
+    Bounds from the bucket index (code_index), two buckets outside the gates: wider than the exact ones by
+    those buckets (the first pass then tests a few more pixels), never narrower, whatever the rounding.
+    """
+    top = first_ge.shape[0] - 1
+    b_hi = min(max(np.floor((r + g_on - t_lo) * inv_w) - 2.0, 0.0), float(top))
+    b_lo = min(max(np.floor((r - g_off - t_lo) * inv_w) + 3.0, 0.0), float(top))
+    return last_le[int(b_lo)], first_ge[int(b_hi)]
 
 
 @numba.njit(cache=True, nogil=True)
-def code_bounds(table, ref, gate_on, gate_off, lo_code, hi_code):
+def code_bounds(ref, gate_on, gate_off, first_ge, last_le, t_lo, inv_w, lo_code, hi_code):
     """Every pixel's (lo_code, hi_code) for reference ref (see coded_interval_events), in place."""
     for i in range(ref.shape[0]):
-        lo_code[i], hi_code[i] = _code_bounds(table, ref[i], gate_on[i], gate_off[i])
+        lo_code[i], hi_code[i] = _code_bounds(ref[i], gate_on[i], gate_off[i], first_ge, last_le, t_lo, inv_w)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -194,3 +202,70 @@ def _time_ordered(code, trel, t0, span, width):
         y[k] = pixel // width
         p[k] = sorted_code[k] & 1
     return x, y, t, p
+
+
+# Linear bounds are put this far (log intensity) inside the gates, and their float32s rounded outwards, so
+# that numpy's log of a value past a bound (which need not agree with numba's exp to the last bit) passes the gate.
+LINEAR_SLACK = 1e-9
+
+
+@numba.njit(cache=True, nogil=True)
+def linear_candidates(frame, lo_lin, hi_lin, scratch):
+    """(problem, n): pixels of a linear frame at or beyond their bounds (linear_bounds) into scratch[:n].
+
+    problem is 0, 1 for a NaN (or an infinity, without a negative value), 2 for a negative value,
+    ranked as the float path reports them; nothing is changed.
+    """
+    n = 0
+    nan = False
+    neg = False
+    inf = False
+    for i in range(frame.shape[0]):
+        v = frame[i]
+        nan |= v != v
+        neg |= v < 0
+        inf |= v == np.inf
+        if (v >= hi_lin[i]) | (v <= lo_lin[i]):
+            scratch[n] = i
+            n += 1
+    return (1 if nan else 2 if neg else 1 if inf else 0), n
+
+
+@numba.njit(cache=True, nogil=True)
+def linear_interval_events(cand, L1c, L0c, base, off, ref, lo_lin, hi_lin, gate_on, gate_off, cp, cn, last_event,
+                           refractory_us, t0, t1, width, log_eps):
+    """interval_events for the candidate pixels cand of a linear frame, given their log intensities now (L1c) and
+    before (L0c): x, y, t (us), p in time order; the bounds of the pixels whose reference moves are updated."""
+    bound = 0
+    for j in range(cand.shape[0]):
+        i = cand[j]
+        _, _, _, _, k_lo, k_hi = _levels(L1c[j], L0c[j], base[i], off[i], cp[i], cn[i])
+        if k_hi >= k_lo:
+            bound += int(k_hi - k_lo) + 1
+    code = np.empty(bound, np.int64)
+    trel = np.empty(bound, np.int64)
+    ne = 0
+    for j in range(cand.shape[0]):
+        i = cand[j]
+        before = off[i]
+        ne = _emit(i, L1c[j], L0c[j], base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne)
+        if off[i] != before:
+            lo_lin[i], hi_lin[i] = _linear_bounds(ref[i], gate_on[i], gate_off[i], log_eps)
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _linear_bounds(r, g_on, g_off, log_eps):
+    """(lo, hi) float32: a linear value v can pass a gate of reference r (log(v + eps) - r >= g_on or <= -g_off) only if
+    v <= lo or v >= hi."""
+    hi = np.exp(r + g_on - LINEAR_SLACK) - log_eps
+    lo = np.exp(r - g_off + LINEAR_SLACK) - log_eps
+    # float32 rounding is at most 6e-8 of the value: these steps put the bounds outside the float64 ones
+    return np.float32(lo + abs(lo) * 2.5e-7 + 1e-30), np.float32(hi - abs(hi) * 2.5e-7)
+
+
+@numba.njit(cache=True, nogil=True)
+def linear_bounds(ref, gate_on, gate_off, log_eps, lo_lin, hi_lin):
+    """Every pixel's linear bounds for reference ref (see linear_candidates), in place."""
+    for i in range(ref.shape[0]):
+        lo_lin[i], hi_lin[i] = _linear_bounds(ref[i], gate_on[i], gate_off[i], log_eps)

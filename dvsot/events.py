@@ -41,6 +41,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from dvsot.errors import UserError
+from dvsot.event_batch import STRUCTURED_DTYPE, EventBatch  # noqa: F401  (re-exported: dvsot.events.EventBatch)
 
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
 
@@ -50,61 +51,7 @@ MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval betwe
 GATE_MARGIN = 1e-6
 
 
-# tonic's structured event layout (fields x, y, t, p), with dvsot's column types
-STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)])
-
-
-@dataclass(frozen=True)
-class EventBatch:
-    """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or None)."""
-
-    x: np.ndarray
-    y: np.ndarray
-    t: np.ndarray
-    p: np.ndarray
-    signal: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    @staticmethod
-    def empty() -> "EventBatch":
-        """A batch with no events."""
-        return EventBatch(np.empty(0, np.uint16), np.empty(0, np.uint16), np.empty(0, np.int64),
-                          np.empty(0, np.uint8), np.empty(0, bool))
-
-    @staticmethod
-    def concatenate(batches: list["EventBatch"]) -> "EventBatch":
-        """Join batches in the given order (the caller keeps them time-ordered)."""
-        if not batches:
-            return EventBatch.empty()
-        sig = None
-        if all(b.signal is not None for b in batches):
-            sig = np.concatenate([b.signal for b in batches])
-        return EventBatch(np.concatenate([b.x for b in batches]), np.concatenate([b.y for b in batches]),
-                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig)
-
-    def to_structured(self) -> np.ndarray:
-        """The events as one structured array with fields x, y, t, p (tonic's layout; dtype STRUCTURED_DTYPE)."""
-        out = np.empty(len(self), STRUCTURED_DTYPE)
-        out["x"], out["y"], out["t"], out["p"] = self.x, self.y, self.t, self.p
-        return out
-
-    @staticmethod
-    def from_structured(events: np.ndarray) -> "EventBatch":
-        """A batch from a structured array with fields x, y, t (microseconds) and p (0/1 or bool), as tonic gives."""
-        names = events.dtype.names or ()
-        missing = [k for k in "xytp" if k not in names]
-        if missing:
-            raise ValueError(f"structured events need fields x, y, t, p; missing {', '.join(missing)}")
-        return EventBatch(events["x"].astype(np.uint16), events["y"].astype(np.uint16),
-                          events["t"].astype(np.int64), events["p"].astype(np.uint8))
-
-    def select(self, mask_or_index: np.ndarray) -> "EventBatch":
-        """The events picked by a boolean mask or an index array."""
-        sig = None if self.signal is None else self.signal[mask_or_index]
-        return EventBatch(self.x[mask_or_index], self.y[mask_or_index], self.t[mask_or_index],
-                          self.p[mask_or_index], sig)
+_LINEAR = object()  # EventSimulator._bounds_for when the first pass's bounds are linear intensities
 
 
 @dataclass(frozen=True)
@@ -169,10 +116,15 @@ class EventSimulator:
         self._last_event = np.full(n, -np.inf)  # time of the last emitted event, float microseconds
         self._t_prev: int | None = None
         self._buf = np.empty(n, np.float64)
-        self._last_codes: np.ndarray | None = None  # the previous frame's codes (flat) when it was a CodedFrame
-        self._table: np.ndarray | None = None  # the table of _last_codes; _last is stale while _last_codes is set
-        self._bounds_table: np.ndarray | None = None  # the table _lo_code/_hi_code hold, None when stale
+        # the previous frame as given, when it was coded or linear ("codes"/"linear"; _last is stale then) or None
+        self._last_kind: str | None = None
+        self._last_src = np.empty(0)  # its codes or linear values, flat
+        self._table: np.ndarray | None = None  # the table of codes in _last_src
+        # what the per-pixel bounds of the first pass are for: a table (_lo_code/_hi_code), _LINEAR, or None (stale)
+        self._bounds_for: object = None
         self._lo_code = self._hi_code = np.empty(0, np.int16)
+        self._lo_lin = self._hi_lin = np.empty(0, np.float32)
+        self._index: tuple = (None,)  # (table, its bucket index: dvsot.event_kernel.code_index)
         self._checked_tables: list[np.ndarray] = []
 
     def _draw_thresholds(self) -> tuple[np.ndarray | float, np.ndarray | float]:
@@ -189,7 +141,7 @@ class EventSimulator:
         """Use these C+ and C- (scalars or one per pixel); the kernel gets one float64 per pixel and the minima."""
         n = self.width * self.height
         self._cp, self._cn = cp, cn
-        self._bounds_table = None  # the code bounds follow the gates
+        self._bounds_for = None  # the first pass's bounds follow the gates
         self._cp_px, self._cn_px = (c if isinstance(c, np.ndarray) else np.full(n, float(c)) for c in (cp, cn))
         self._gate_on, self._gate_off = ((c * (1 - GATE_MARGIN)).astype(np.float32) for c in (self._cp_px, self._cn_px))
 
@@ -238,8 +190,9 @@ class EventSimulator:
         t_us = int(t_us)
         if isinstance(frame, CodedFrame):
             return self._step_coded(frame, t_us, copy)
-        if self._last_codes is not None:  # the previous frame was coded: the float kernel needs its log intensities
-            self._last, self._last_is_ours, self._last_codes = np.take(self._table, self._last_codes), True, None
+        if not is_log and self._t_prev is not None and not self._redraws():
+            return self._step_linear(frame, t_us, copy)
+        self._log_last()
         L1 = self._log_frame(frame, is_log, copy)
         if self._t_prev is None:
             self._base[:] = L1
@@ -252,7 +205,7 @@ class EventSimulator:
         t0, t1 = self._t_prev, t_us
         p = self.params
         self._check_noise(t0, t1)  # before the kernel and any array: a refused interval costs nothing
-        if p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0):
+        if self._redraws():
             self._set_thresholds(*self._draw_thresholds())
         from dvsot.event_kernel import interval_events  # numba: imported when the first events are due
 
@@ -261,11 +214,40 @@ class EventSimulator:
                                                float(p.refractory_us), t0, t1, self.width, self._scratch)
         if not finite:  # found before the kernel changed anything
             raise UserError("frame contains NaN or infinite values")
-        self._bounds_table = None  # references moved outside the coded kernel
+        self._bounds_for = None  # references moved outside the kernels that keep bounds
         signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
         noise = self._noise(t0, t1)
         self._keep_last(L1)
         self._t_prev = t1
+        return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+
+    def _redraws(self) -> bool:
+        """True if the thresholds are drawn anew for every interval (then only the float kernel runs)."""
+        p = self.params
+        return p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0)
+
+    def _log_last(self) -> np.ndarray:
+        """The previous frame's log intensities (_last), computed now if it came coded or linear."""
+        if self._last_kind == "codes":
+            self._last = np.take(self._table, self._last_src)
+        elif self._last_kind == "linear":  # as _log_frame computes them
+            self._last = np.log(np.add(self._last_src, self.params.log_eps, dtype=np.float64))
+        if self._last_kind is not None:
+            self._last_is_ours, self._last_kind = True, None
+        return self._last
+
+    def _interval(self, t_us: int) -> tuple[int, int]:
+        """(t0, t1) of the interval up to t_us; UserError if time does not increase or the noise would be too much."""
+        if t_us <= self._t_prev:
+            raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
+        self._check_noise(self._t_prev, t_us)
+        return self._t_prev, t_us
+
+    def _finish(self, x, y, t, pol, t0: int, t1: int, kind: str | None, src: np.ndarray) -> EventBatch:
+        """The interval's signal events and noise as one batch; src (kind "codes"/"linear"; None: _last) is the frame now."""
+        signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
+        noise = self._noise(t0, t1)
+        self._last_kind, self._last_src, self._t_prev = kind, src, t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
 
     def _step_coded(self, frame: CodedFrame, t_us: int, copy: bool) -> EventBatch:
@@ -276,36 +258,74 @@ class EventSimulator:
             self._base[:] = L1
             self._ref[:] = L1
             self._last[:] = L1
-            self._last_codes, self._table, self._t_prev = (codes.copy() if copy else codes), table, t_us
+            self._last_kind, self._last_src, self._table = "codes", (codes.copy() if copy else codes), table
+            self._t_prev = t_us
             return EventBatch.empty()
-        if t_us <= self._t_prev:
-            raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
-        p = self.params
-        if (p.mismatch == "per_interval" and (p.sigma_cp > 0 or p.sigma_cn > 0)) or self._last_codes is None \
-                or table is not self._table:
+        if self._redraws() or self._last_kind != "codes" or table is not self._table:
             # gates drawn anew every interval (the bounds would be recomputed for every pixel), or the previous
             # frame not coded with this table: the same events from the float kernel
             batch = self.step(np.take(table, codes).reshape(self.height, self.width), t_us, is_log=True, copy=False)
-            self._last_codes, self._table = (codes.copy() if copy else codes), table
+            self._last_kind, self._last_src, self._table = "codes", (codes.copy() if copy else codes), table
             return batch
-        t0, t1 = self._t_prev, t_us
-        self._check_noise(t0, t1)
-        from dvsot.event_kernel import code_bounds, coded_interval_events
+        t0, t1 = self._interval(t_us)
+        from dvsot.event_kernel import code_bounds, code_index, coded_interval_events
 
-        if self._bounds_table is not table:
+        if self._index[0] is not table:
+            self._index = (table, *code_index(table))
+        if self._bounds_for is not table:
             dtype = np.int16 if table.shape[0] <= 1 << 15 else np.int32
             if self._lo_code.shape != codes.shape or self._lo_code.dtype != dtype:
                 self._lo_code, self._hi_code = np.empty(codes.shape, dtype), np.empty(codes.shape, dtype)
-            code_bounds(table, self._ref, self._gate_on, self._gate_off, self._lo_code, self._hi_code)
-            self._bounds_table = table
-        x, y, t, pol = coded_interval_events(codes, table, self._last_codes, self._base, self._off, self._ref,
-                                             self._lo_code, self._hi_code, self._gate_on, self._gate_off,
-                                             self._cp_px, self._cn_px, self._last_event, float(p.refractory_us),
-                                             t0, t1, self.width, self._scratch)
-        signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
-        noise = self._noise(t0, t1)
-        self._last_codes, self._t_prev = (codes.copy() if copy else codes), t1
-        return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+            code_bounds(self._ref, self._gate_on, self._gate_off, *self._index[1:], self._lo_code, self._hi_code)
+            self._bounds_for = table
+        x, y, t, pol = coded_interval_events(codes, table, self._last_src, self._base, self._off, self._ref,
+                                             self._lo_code, self._hi_code, *self._index[1:], self._gate_on,
+                                             self._gate_off,
+                                             self._cp_px, self._cn_px, self._last_event,
+                                             float(self.params.refractory_us), t0, t1, self.width, self._scratch)
+        return self._finish(x, y, t, pol, t0, t1, "codes", codes.copy() if copy else codes)
+
+    def _step_linear(self, frame: np.ndarray, t_us: int, copy: bool) -> EventBatch:
+        """step() for a linear frame after the first, fixed thresholds: only the pixels past their bounds get a log."""
+        a = np.asarray(frame)
+        if a.shape != (self.height, self.width):
+            raise UserError(f"frame has shape {a.shape}, expected ({self.height}, {self.width})")
+        if a.dtype.kind not in "fiu":
+            raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
+        from dvsot.event_kernel import linear_bounds, linear_candidates, linear_interval_events
+
+        eps = self.params.log_eps
+        if self._bounds_for is not _LINEAR:
+            if self._lo_lin.shape != self._ref.shape:
+                self._lo_lin, self._hi_lin = np.empty(self._ref.shape, np.float32), np.empty(self._ref.shape, np.float32)
+            linear_bounds(self._ref, self._gate_on, self._gate_off, eps, self._lo_lin, self._hi_lin)
+            self._bounds_for = _LINEAR
+        flat = np.ascontiguousarray(a).reshape(-1)
+        problem, n = linear_candidates(flat, self._lo_lin, self._hi_lin, self._scratch)
+        if problem == 2:  # the float path's order: negative values first, then time, noise, NaN and infinities
+            raise UserError("frame contains negative intensities")
+        t0, t1 = self._interval(t_us)
+        if problem:
+            raise UserError("frame contains NaN or infinite values")
+        cand = self._scratch[:n]
+        dense = n > flat.size // 8  # most pixels pass: the whole frame's log, as the float path, kept for the next
+        if dense:
+            L1 = np.log(np.add(flat, eps, out=self._buf, dtype=np.float64, casting="unsafe"), out=self._buf)
+            L1c = L1[cand]
+        else:
+            L1c = np.log(np.add(flat[cand], eps, dtype=np.float64))  # numpy's log, as the float path's (not numba's)
+        if self._last_kind == "linear":
+            L0c = np.log(np.add(self._last_src[cand], eps, dtype=np.float64))
+        else:
+            L0c = self._log_last()[cand]
+        x, y, t, pol = linear_interval_events(cand, L1c, L0c, self._base, self._off, self._ref, self._lo_lin,
+                                              self._hi_lin, self._gate_on, self._gate_off, self._cp_px, self._cn_px,
+                                              self._last_event, float(self.params.refractory_us), t0, t1,
+                                              self.width, eps)
+        if dense:
+            self._keep_last(L1)
+            return self._finish(x, y, t, pol, t0, t1, None, self._last_src)
+        return self._finish(x, y, t, pol, t0, t1, "linear", flat.copy() if copy else flat)
 
     def _codes(self, frame: CodedFrame) -> np.ndarray:
         """The frame's codes, flat; the shape, the code type and (once per table) the table checked."""
@@ -328,6 +348,7 @@ class EventSimulator:
 
     def _keep_last(self, L1: np.ndarray) -> None:
         """L1 becomes the previous sample; the simulator's own buffers are reused, a caller's array never written."""
+        self._last_kind = None
         if L1 is self._buf:
             if self._last_is_ours:
                 self._last, self._buf = L1, self._last
