@@ -62,22 +62,26 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
     renamed into place only when complete (DatasetWriter); on any error nothing is left behind, and the
     progress bar stays on screen unless bar_after_error is False (then the error line stands alone).
     """
-    from tqdm import tqdm
-
     with DatasetWriter(path, sim.width, sim.height, segment_us, attrs) as writer:
-        bar = tqdm(total=len(t_us), unit="frame", disable=not progress, desc=desc or source)
+        bar = shown = None
+        if progress:  # tqdm's import is a tenth of `dvsot simulate`'s start-up: only for the bar
+            from tqdm import tqdm
 
-        def shown(done: int, events: int) -> None:
-            bar.update(1)
-            bar.set_postfix_str(f"t={t_us[done - 1] / 1e6:.3f}s events={events:,}", refresh=False)
+            bar = tqdm(total=len(t_us), unit="frame", desc=desc or source)
+
+            def shown(done: int, events: int) -> None:
+                bar.update(1)
+                bar.set_postfix_str(f"t={t_us[done - 1] / 1e6:.3f}s events={events:,}", refresh=False)
 
         try:
             counts = simulate_frames(frames, t_us, sim, writer, source, shown, is_log=is_log)
         except BaseException:
-            bar.leave = bar_after_error
+            if bar is not None:
+                bar.leave = bar_after_error
             raise
         finally:
-            bar.close()
+            if bar is not None:
+                bar.close()
         if counts.frames != len(t_us):
             raise UserError(f"{source}: expected {len(t_us)} frames, read {counts.frames}")
         rows = boxes() if boxes is not None else None
