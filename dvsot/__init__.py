@@ -2,7 +2,7 @@
 
 The Python API (README, "Use it from Python"): `load_scene` -> `generate` renders a scene into a dataset
 file; `simulate_file` turns frames you have (images, video, .npy) into one, `EventSimulator` +
-`write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it. Each name
+`write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it, `dataset_info` sums it up. Each name
 is imported on first use, so `import dvsot` stays light (no torch, no bpy).
 """
 
@@ -23,6 +23,7 @@ _API = {
     "Dataset": "dvsot.dataset",
     "DatasetWriter": "dvsot.dataset",
     "find_datasets": "dvsot.dataset",
+    "dataset_info": "dvsot.info",
     "UserError": "dvsot.errors",
     "RunError": "dvsot.errors",
 }

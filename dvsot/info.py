@@ -1,0 +1,48 @@
+"""What a dataset file holds: resolution, duration, events, rate, segments, box coverage, parameters (`dvsot info`)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from dvsot.dataset import Dataset
+
+
+def dataset_info(path: str | os.PathLike) -> dict:
+    """A dict summary of one dataset file (times in seconds, sizes in pixels); every event is read and checked."""
+    with Dataset(path) as ds:
+        n_pos, n_noise, has_signal = 0, 0, False
+        # chunked (files may hold hundreds of millions of events), and every chunk is checked on the way:
+        # info is where a damaged file should show up, so it reads all of it
+        for batch in ds.chunks():
+            n_pos += int(np.count_nonzero(batch.p))
+            if batch.signal is not None:
+                has_signal = True
+                n_noise += int(np.count_nonzero(~batch.signal))
+        n_noise = n_noise if has_signal else None
+        seg = ds.segment_boxes()
+        have = ~np.isnan(seg).any(axis=1)
+        duration = ds.duration_us / 1e6
+        out = {
+            "file": str(ds.path), "name": ds.name, "split": ds.split, "format_version": ds.format_version,
+            "resolution": [ds.width, ds.height], "duration_s": duration, "events": ds.num_events,
+            "event_rate_per_s": ds.num_events / duration if duration else 0.0,
+            "positive_fraction": n_pos / ds.num_events if ds.num_events else None,
+            "noise_events": n_noise, "segment_ms": ds.segment_us / 1000, "segments": ds.num_segments,
+            "segments_with_box": int(have.sum()),
+            "box_coverage": float(have.mean()) if ds.num_segments else 0.0,
+            "box_samples": int(len(ds.boxes().t)),
+            "t_offset_us": ds.t_offset_us,
+            "ground_truth": "annotations" if ds.annotated else "rendered",
+        }
+        if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
+            out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
+        if have.any():
+            w, h = seg[have, 2], seg[have, 3]
+            out["box_width_px"] = [float(w.min()), float(np.median(w)), float(w.max())]
+            out["box_height_px"] = [float(h.min()), float(np.median(h)), float(h.max())]
+        for key in ("simulator", "seed", "generator", "versions"):
+            if key in ds.attrs:
+                out[key] = ds.attrs[key]
+    return out
