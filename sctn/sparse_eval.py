@@ -28,6 +28,7 @@ SCTNTracker then runs the dense path.
 from __future__ import annotations
 
 import functools
+import threading
 
 import numpy as np
 import torch
@@ -36,7 +37,7 @@ from dvsot.events import EventBatch
 from sctn.encoding import box_canvas, encode_boxes
 from sctn.energy import LAYER_NAMES, conv_fanout
 from sctn.network import SCTN
-from sctn.sparse_kernels import BITS, NBITS, conv_layers
+from sctn.sparse_kernels import conv_layers
 
 
 def exact_blocker(model: SCTN) -> str | None:
@@ -182,13 +183,13 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     ex, ey, occ, tile_start, tiles = _segment_events(events, t0_us, geom, steps, cfg.step_us)
     sizes = [size] + cfg.conv_sizes()
     c3 = cfg.channels[2]
-    rows3 = np.empty((max(n * total, MIN_ROWS), c3 * sizes[3] ** 2), np.float32)  # conv3's rows that spike
+    rows3 = _scratch_rows(max(n * total, MIN_ROWS), c3 * sizes[3] ** 2)  # conv3's rows that spike
     row_of = np.full(n * total, -1, np.int64)  # (candidate, step) -> its row of rows3
     counts = np.zeros((n, 4, 2), np.float64)  # per layer input .. conv3: spikes, ACs
     weights, consts, fans = _kernel_arrays(model)
     used = conv_layers(ex, ey, occ, tile_start, tiles, geom, np.float32(size / 2), size, *sizes[1:], *cfg.kernels,
                         *weights, *cfg.channels, cfg.strides[1], cfg.strides[2], *blocks[1:], *consts,
-                        np.float32(model.neurons[0].theta), total, record, *fans, BITS, NBITS, rows3, row_of,
+                        np.float32(model.neurons[0].theta), total, record, *fans, rows3, row_of,
                        counts)
     last = n % DENSE_CHUNK
     if n > DENSE_CHUNK and 0 < last * total < MIN_ROWS:  # the dense path's last batch is that small: so is ours
@@ -212,6 +213,18 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
         conv3[torch.from_numpy(np.flatnonzero(row_of >= 0))] = torch.from_numpy(rows3[row_of[row_of >= 0]])
     maps = {"conv3": conv3.view(n, total, -1).transpose(0, 1), "fc1": fc_spikes[0], "fc2": fc_spikes[1], "output": out}
     return volts, {"spikes": spikes, "ac_ops": ops, "maps": maps}
+
+
+def _scratch_rows(rows: int, width: int) -> np.ndarray:
+    """A float32 (rows, width) buffer for conv3's spike rows, kept per thread between calls: a new one per segment
+    (16 MB for 256 candidates) cost a page fault per 4 kB page touched."""
+    buf = getattr(_SCRATCH, "rows3", None)
+    if buf is None or buf.shape[0] < rows or buf.shape[1] != width:
+        buf = _SCRATCH.rows3 = np.empty((rows, width), np.float32)
+    return buf[:rows]
+
+
+_SCRATCH = threading.local()
 
 
 def _kernel_arrays(model: SCTN) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:

@@ -1,12 +1,11 @@
 """Compiled kernels of sctn/sparse_eval.py: the input and the three spiking convolutions of SCTN per candidate,
 over the events and spikes that exist (see that module for the method and why it is exact).
 
-Spikes of a layer are kept as lists per cell (step * 32 + channel, by step then channel), so a
-convolution adds exactly the weight rows of the spikes in each window, in the order torch's CPU
-convolution sums them. Rows are added 8 lanes at a time (_vadd8: numba leaves such short loops
-scalar), and C-LIF runs over all of a layer's cells side by side (per cell its 8 or 16 channels
-would not vectorise).
-"""
+Spikes of a layer are kept as channel bits per (cell, step) (an int64 mask), so a convolution adds
+exactly the weight rows of the spikes in each window, lowest channel first, in the order torch's CPU
+convolution sums them. Rows are added as one 16- or 8-lane vector (_vadd: numba leaves such short
+loops scalar), the steps of a cell interleaved (independent sums that overlap), and C-LIF runs over
+all of a layer's cells side by side (per cell its 8 or 16 channels would not vectorise)."""
 
 from __future__ import annotations
 
@@ -17,33 +16,24 @@ from numba import types
 from numba.extending import intrinsic
 
 
-def _bit_tables() -> tuple[np.ndarray, np.ndarray]:
-    """For every byte value: its set bits in ascending order (256, 8) and how many there are (256,)."""
-    bits = np.zeros((256, 8), np.int64)
-    nbits = np.zeros(256, np.int64)
-    for b in range(256):
-        on = [i for i in range(8) if b >> i & 1]
-        bits[b, :len(on)] = on
-        nbits[b] = len(on)
-    return bits, nbits
-
-
-BITS, NBITS = _bit_tables()
-
-
 @intrinsic
-def _vadd8(typingctx, cur, at, w, src):
-    """cur[at:at + 8] += w[src:src + 8] as one 8-lane float32 vector operation (lane by lane the same IEEE additions as
-    a loop; numba leaves such short loops scalar). No bounds check: callers keep the indices in range."""
+def _vadd(typingctx, cur, at, w, src, lanes):
+    """cur[at:at + lanes] += w[src:src + lanes] as one vector operation of `lanes` (8 or 16, a literal) float32
+    lanes: lane by lane the same IEEE additions as a loop (numba leaves such short loops scalar). No bounds
+    check: callers keep the indices in range."""
+    if not isinstance(lanes, types.IntegerLiteral):
+        return None
+    n = lanes.literal_value
+
     def codegen(context, builder, sig, args):
-        vec = ir.VectorType(ir.FloatType(), 8).as_pointer()
+        vec = ir.VectorType(ir.FloatType(), n).as_pointer()
         a_cur = context.make_array(sig.args[0])(context, builder, args[0])
         a_w = context.make_array(sig.args[2])(context, builder, args[2])
         p_cur = builder.bitcast(builder.gep(a_cur.data, [args[1]]), vec)
         p_w = builder.bitcast(builder.gep(a_w.data, [args[3]]), vec)
         builder.store(builder.fadd(builder.load(p_cur, align=4), builder.load(p_w, align=4)), p_cur, align=4)
         return context.get_dummy_value()
-    return types.void(cur, at, w, src), codegen
+    return types.void(cur, at, w, src, lanes), codegen
 
 
 @intrinsic
@@ -56,13 +46,38 @@ def _load_u64(typingctx, arr, at):
     return types.uint64(arr, at), codegen
 
 
+@intrinsic
+def _ctz(typingctx, x):
+    """The index of the lowest set bit of an int64 (x != 0)."""
+    def codegen(context, builder, sig, args):
+        return builder.cttz(args[0], ir.Constant(ir.IntType(1), 1))
+    return types.int64(types.int64), codegen
+
+
+@intrinsic
+def _popcount(typingctx, x):
+    """The number of set bits of an int64."""
+    def codegen(context, builder, sig, args):
+        return builder.ctpop(args[0])
+    return types.int64(types.int64), codegen
+
+
 @numba.njit(cache=True, inline="always")
 def _add_row(cur: np.ndarray, at: int, w: np.ndarray, row: int, ch: int) -> None:  # pragma: no cover - compiled
-    """cur[at:at + ch] += w[row * ch:(row + 1) * ch], 8 lanes at a time."""
+    """cur[at:at + ch] += w[row * ch:(row + 1) * ch], by vectors of 16 and 8 lanes, the rest lane by lane."""
     src = row * ch
+    if ch == 16:  # the usual widths, without the loops
+        _vadd(cur, at, w, src, 16)
+        return
+    if ch == 8:
+        _vadd(cur, at, w, src, 8)
+        return
     o = 0
+    while o + 16 <= ch:
+        _vadd(cur, at + o, w, src + o, 16)
+        o += 16
     while o + 8 <= ch:
-        _vadd8(cur, at + o, w, src + o)
+        _vadd(cur, at + o, w, src + o, 8)
         o += 8
     while o < ch:
         cur[at + o] += w[src + o]
@@ -96,35 +111,36 @@ def _clif_flat(cur: np.ndarray, width: int, m: int, steps: int, consts: np.ndarr
 
 
 @numba.njit(cache=True)
-def _spike_lists(fired: np.ndarray, width: int, n: int, ch: int, steps: int, bits: np.ndarray, nbits: np.ndarray,
-                 start: np.ndarray, spikes: np.ndarray) -> int:  # pragma: no cover - compiled
-    """The spikes of n cells (fired: steps x width flat bytes, cell-major channels) as lists: cell j's are
-    spikes[start[j]:start[j + 1]], each step * 32 + channel, by step then channel. Returns the total.
+def _spike_masks(fired: np.ndarray, width: int, n: int, ch: int, steps: int, masks: np.ndarray,
+                 alive: np.ndarray) -> int:  # pragma: no cover - compiled
+    """The spikes of n cells (fired: steps x width flat bytes, cell-major channels) as channel bits: masks[j *
+    steps + t] bit c is cell j's channel c at step t; alive[j] whether cell j fired at all. Returns the spikes.
     Eight channels' bytes (0 or 1) are read as one word and packed into a byte of bits by a multiply."""
-    k = 0
+    total = 0
     pack = np.uint64(0x0102040810204080)
     for j in range(n):
-        start[j] = k
+        seen = 0
         for t in range(steps):
             at = t * width + j * ch
+            m = 0
             for g in range(0, ch, 8):
                 word = _load_u64(fired, at + g)
-                if word:
-                    if ch - g < 8:
-                        word &= (np.uint64(1) << np.uint64(8 * (ch - g))) - np.uint64(1)
-                    value = (word * pack) >> np.uint64(56)
-                    for q in range(nbits[value]):
-                        spikes[k] = t * 32 + g + bits[value, q]
-                        k += 1
-    start[n] = k
-    return k
+                if ch - g < 8:
+                    word &= (np.uint64(1) << np.uint64(8 * (ch - g))) - np.uint64(1)
+                m |= np.int64((word * pack) >> np.uint64(56)) << g
+            masks[j * steps + t] = m
+            seen |= m
+            total += _popcount(m)
+        alive[j] = seen != 0
+    return total
 
 
 @numba.njit(cache=True)
-def _window_currents(cells_out, n_out, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, steps, width,
+def _window_currents(cells_out, n_out, slot_in, masks_in, s_in, s_out, k, st, w, ch, blk, steps, width,
                      cur) -> None:  # pragma: no cover - compiled
     """The currents of output cells cells_out[:n_out] into cur (steps x width flat, cell j at columns j ch ..):
-    the weight rows of the spikes in each window (see _conv_cells), in torch's order."""
+    the weight rows of the spikes in each window (see _conv_cells), in torch's order per (cell, step); the
+    steps are independent sums, interleaved so that their additions overlap."""
     c_in = w.shape[0] // (k * k * ch)
     for t in range(steps):
         cur[t * width:t * width + n_out * ch] = 0
@@ -133,42 +149,37 @@ def _window_currents(cells_out, n_out, slot_in, start_in, spikes_in, s_in, s_out
         oy, ox = cell // s_out, cell % s_out
         col = j * ch
         for c0 in range(0, c_in, blk):
+            keep = ((1 << min(blk, c_in - c0)) - 1) << c0
             for ky in range(k):
                 for kx in range(k):
                     src = slot_in[(oy * st + ky) * s_in + ox * st + kx]
                     if src < 0:
                         continue
                     base = (ky * k + kx) * c_in
-                    for q in range(start_in[src], start_in[src + 1]):
-                        e = spikes_in[q]
-                        if (e & 31) < c0 or (e & 31) >= c0 + blk:
-                            continue
-                        at, row = (e >> 5) * width + col, (base + (e & 31)) * ch
-                        if ch == 16:  # the usual widths, without the loop of _add_row
-                            _vadd8(cur, at, w, row)
-                            _vadd8(cur, at + 8, w, row + 8)
-                        elif ch == 8:
-                            _vadd8(cur, at, w, row)
-                        else:
-                            _add_row(cur, at, w, base + (e & 31), ch)
+                    for t in range(steps):
+                        m = masks_in[src * steps + t] & keep
+                        while m:
+                            _add_row(cur, t * width + col, w, base + _ctz(m), ch)
+                            m &= m - 1
 
 
 @numba.njit(cache=True)
-def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, consts, theta, steps,
-                width, cur, fired, state, slot_out, cells_out, start_out, spikes_out, bits,
-                nbits) -> int:  # pragma: no cover - compiled
+def _conv_cells(cells_in, n_in, slot_in, masks_in, alive_in, s_in, s_out, k, st, w, ch, blk, consts, theta, steps,
+                width, cur, fired, state, slot_out, cells_out, masks_out, alive_out) -> int:  # pragma: no cover
     """One spiking convolution, on the output cells whose window holds a spike of the layer below.
 
-    Input: cells_in[:n_in] (map cell indices), slot_in (map cell -> its index j, or -1) and their
-    spike lists (start_in, spikes_in; see _spike_lists). w (k k C_in x C_out, flat) rows in (kernel row,
-    column, input channel) order. A window's spikes are added per step in the order torch sums it: by
-    blocks of blk input channels, within a block by kernel row, column, channel (blk >= C_in: one block).
-    Output likewise (cells_out, slot_out, start_out, spikes_out); returns their number."""
+    Input: cells_in[:n_in] (map cell indices), slot_in (map cell -> its index j, or -1, for the cells of
+    the layer below that fired) and their spikes (masks_in, alive_in; see _spike_masks). w (k k C_in x
+    C_out, flat) rows in (kernel row, column, input channel) order. A window's spikes are added per step
+    in the order torch sums it: by blocks of blk input channels, within a block by kernel row, column,
+    channel (blk >= C_in: one block). Output likewise (cells_out, slot_out, masks_out, alive_out);
+    returns their number."""
     n_out = 0
     for j in range(n_in):
-        if start_in[j + 1] == start_in[j]:
-            continue
         cell = cells_in[j]
+        if not alive_in[j]:
+            slot_in[cell] = -1  # silent: not read below (and left clean)
+            continue
         y, x = cell // s_in, cell % s_in
         for oy in range(max(0, -((k - 1 - y) // st)), min(s_out - 1, y // st) + 1):
             for ox in range(max(0, -((k - 1 - x) // st)), min(s_out - 1, x // st) + 1):
@@ -176,16 +187,15 @@ def _conv_cells(cells_in, n_in, slot_in, start_in, spikes_in, s_in, s_out, k, st
                     slot_out[oy * s_out + ox] = n_out
                     cells_out[n_out] = oy * s_out + ox
                     n_out += 1
-    _window_currents(cells_out, n_out, slot_in, start_in, spikes_in, s_in, s_out, k, st, w, ch, blk, steps, width,
-                     cur)
+    _window_currents(cells_out, n_out, slot_in, masks_in, s_in, s_out, k, st, w, ch, blk, steps, width, cur)
     _clif_flat(cur, width, n_out * ch, steps, consts, theta, fired, state)
-    _spike_lists(fired, width, n_out, ch, steps, bits, nbits, start_out, spikes_out)
+    _spike_masks(fired, width, n_out, ch, steps, masks_out, alive_out)
     return n_out
 
 
 @numba.njit(cache=True)
 def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1, k2, k3, w1, w2, w3, ch1, ch2,
-                ch3, st2, st3, blk2, blk3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, bits, nbits, rows3,
+                ch3, st2, st3, blk2, blk3, c1, c2, c3, theta, steps, record, fan0, fan1, fan2, rows3,
                 row_of, counts) -> int:  # pragma: no cover - compiled
     """Input and the three spiking convolutions of every candidate (see the module docstring).
 
@@ -209,19 +219,20 @@ def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1
     cells1 = np.empty(s1 * s1, np.int64)
     cells2 = np.empty(s2 * s2, np.int64)
     cells3 = np.empty(s3 * s3, np.int64)
-    start1 = np.empty(s1 * s1 + 1, np.int64)
-    start2 = np.empty(s2 * s2 + 1, np.int64)
-    start3 = np.empty(s3 * s3 + 1, np.int64)
-    spikes1 = np.empty(steps * s1 * s1 * ch1 + 1, np.int64)
-    spikes2 = np.empty(steps * s2 * s2 * ch2 + 1, np.int64)
-    spikes3_list = np.empty(steps * s3 * s3 * ch3 + 1, np.int64)
+    spikes1 = np.empty(s1 * s1 * steps, np.int64)  # per cell and step: its channels that fired, as bits
+    spikes2 = np.empty(s2 * s2 * steps, np.int64)
+    spikes3 = np.empty(s3 * s3 * steps, np.int64)
+    alive1 = np.empty(s1 * s1, np.bool_)
+    alive2 = np.empty(s2 * s2, np.bool_)
+    alive3 = np.empty(s3 * s3, np.bool_)
     masks1 = np.zeros((s1 * s1, steps), np.int64)  # per touched conv1 cell and step: its input pixels as bits
     stamp = np.zeros(steps * 2 * size * size if record else 1, np.int64)  # dedups input pixels conv1 does not read
     cur = np.zeros(steps * width, np.float32)
-    fired = np.zeros(steps * width + 8, np.uint8)  # + 8: _spike_lists reads whole words
+    fired = np.zeros(steps * width + 8, np.uint8)  # + 8: _spike_masks reads whole words
     state = np.zeros((3, width), np.float32)
-    nbytes1 = (w1.shape[0] // ch1 + 7) // 8
     steps_in = min(steps, 31)  # steps that can hold events (occ's bits); the tail steps stay empty
+    pow2 = k1 & (k1 - 1) == 0
+    log_k1 = _ctz(k1)
     used = 0  # rows of rows3 filled
     for i in range(geom.shape[0]):
         x0, x1, y0, y1, cx, cy, sc = geom[i, 0], geom[i, 1], geom[i, 2], geom[i, 3], geom[i, 4], geom[i, 5], geom[i, 6]
@@ -240,18 +251,21 @@ def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1
                     continue
                 o = occ[e]
                 if px < cover and py < cover:
-                    cell = (py // k1) * s1 + px // k1
-                    if slot1[cell] < 0:
-                        slot1[cell] = n1
-                        cells1[n1] = cell
-                        masks1[n1, :] = 0
-                        n1 += 1
+                    if pow2:  # px, py >= 0: shifts and masks (a division by a variable is slow)
+                        qx, rx, qy, ry = px >> log_k1, px & (k1 - 1), py >> log_k1, py & (k1 - 1)
+                    else:
+                        qx, rx, qy, ry = px // k1, px % k1, py // k1, py % k1
+                    cell = qy * s1 + qx
                     j = slot1[cell]
-                    shift = ((py % k1) * k1 + px % k1) * 2
+                    if j < 0:
+                        j = n1
+                        slot1[cell] = j
+                        cells1[j] = cell
+                        masks1[j, :] = 0
+                        n1 += 1
+                    shift = (ry * k1 + rx) * 2
                     for t in range(steps_in):
-                        b = (o >> (2 * t)) & 3
-                        if b:
-                            masks1[j, t] |= b << shift
+                        masks1[j, t] |= ((o >> (2 * t)) & 3) << shift
                 elif record:
                     for t in range(steps_in):
                         for p in range(2):
@@ -265,47 +279,58 @@ def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1
             cur[t * width:t * width + n1 * ch1] = 0
         for j in range(n1):
             for t in range(steps):
-                mask = masks1[j, t]
-                if mask == 0:
-                    continue
-                for byte in range(nbytes1):
-                    value = (mask >> (8 * byte)) & 255
-                    for q in range(nbits[value]):
-                        _add_row(cur, t * width + j * ch1, w1, 8 * byte + bits[value, q], ch1)
+                m = masks1[j, t]
+                while m:
+                    _add_row(cur, t * width + j * ch1, w1, _ctz(m), ch1)
+                    m &= m - 1
         _clif_flat(cur, width, n1 * ch1, steps, c1, theta, fired, state)
-        _spike_lists(fired, width, n1, ch1, steps, bits, nbits, start1, spikes1)
-        n2 = _conv_cells(cells1, n1, slot1, start1, spikes1, s1, s2, k2, st2, w2, ch2, blk2, c2, theta, steps, width,
-                         cur, fired, state, slot2, cells2, start2, spikes2, bits, nbits)
-        n3 = _conv_cells(cells2, n2, slot2, start2, spikes2, s2, s3, k3, st3, w3, ch3, blk3, c3, theta, steps, width,
-                         cur, fired, state, slot3, cells3, start3, spikes3_list, bits, nbits)
-        for j in range(n3):
-            cell = cells3[j]
-            for q in range(start3[j], start3[j + 1]):
-                e = spikes3_list[q]
-                row = row_of[i * steps + (e >> 5)]
-                if row < 0:
-                    row = used
-                    row_of[i * steps + (e >> 5)] = used
-                    rows3[row, :] = 0
-                    used += 1
-                rows3[row, (e & 31) * s3 * s3 + cell] = 1.0
-        if record:
+        _spike_masks(fired, width, n1, ch1, steps, spikes1, alive1)
+        if record:  # before _conv_cells clears the slots of silent cells
             for j in range(n1):
                 cell = cells1[j]
+                c = 0
                 for t in range(steps):
-                    c = nbits[masks1[j, t] & 255] + nbits[(masks1[j, t] >> 8) & 255] + \
-                        nbits[(masks1[j, t] >> 16) & 255] + nbits[(masks1[j, t] >> 24) & 255]
-                    counts[i, 0, 0] += c
-                    counts[i, 0, 1] += c * fan0[(cell // s1) * k1 * size + (cell % s1) * k1]
-                c = start1[j + 1] - start1[j]
+                    c += _popcount(masks1[j, t])
+                counts[i, 0, 0] += c
+                counts[i, 0, 1] += c * fan0[(cell // s1) * k1 * size + (cell % s1) * k1]
+                c = 0
+                for t in range(steps):
+                    c += _popcount(spikes1[j * steps + t])
                 counts[i, 1, 0] += c
                 counts[i, 1, 1] += c * fan1[cell]
+        n2 = _conv_cells(cells1, n1, slot1, spikes1, alive1, s1, s2, k2, st2, w2, ch2, blk2, c2, theta, steps, width,
+                         cur, fired, state, slot2, cells2, spikes2, alive2)
+        n3 = _conv_cells(cells2, n2, slot2, spikes2, alive2, s2, s3, k3, st3, w3, ch3, blk3, c3, theta, steps, width,
+                         cur, fired, state, slot3, cells3, spikes3, alive3)
+        for j in range(n3):
+            if not alive3[j]:
+                continue
+            cell = cells3[j]
+            for t in range(steps):
+                m = spikes3[j * steps + t]
+                if m == 0:
+                    continue
+                row = row_of[i * steps + t]
+                if row < 0:
+                    row = used
+                    row_of[i * steps + t] = used
+                    rows3[row, :] = 0
+                    used += 1
+                while m:
+                    rows3[row, _ctz(m) * s3 * s3 + cell] = 1.0
+                    m &= m - 1
+        if record:
             for j in range(n2):
-                c = start2[j + 1] - start2[j]
+                c = 0
+                for t in range(steps):
+                    c += _popcount(spikes2[j * steps + t])
                 counts[i, 2, 0] += c
                 counts[i, 2, 1] += c * fan2[cells2[j]]
-            counts[i, 3, 0] = start3[n3]
-        # leave the scratch maps clean for the next candidate
+            c = 0
+            for j in range(n3 * steps):
+                c += _popcount(spikes3[j])
+            counts[i, 3, 0] = c
+        # leave the scratch maps clean for the next candidate (silent cells of conv1, conv2 already are)
         for j in range(n1):
             slot1[cells1[j]] = -1
         for j in range(n2):
@@ -321,13 +346,11 @@ def window_currents(spikes: np.ndarray, weight: np.ndarray, stride: int, blk: in
     steps, c_in, size, _ = spikes.shape
     c_out, k = weight.shape[0], weight.shape[2]
     out = (size - k) // stride + 1
-    on = np.ascontiguousarray(spikes.transpose(2, 3, 0, 1).reshape(size * size, steps * c_in)) != 0
-    start = np.concatenate([[0], np.cumsum(on.sum(axis=1))]).astype(np.int64)
-    cell, code = np.nonzero(on)  # by cell, then step, then channel
-    lists = ((code // c_in) * 32 + code % c_in).astype(np.int64)
+    on = np.ascontiguousarray(spikes.transpose(2, 3, 0, 1)) != 0  # (H, W, T, C_in)
+    masks = (on.astype(np.int64) << np.arange(c_in, dtype=np.int64)).sum(axis=3).reshape(-1)  # per cell, step
     width = out * out * c_out
     cur = np.zeros(steps * width, np.float32)
     w = np.ascontiguousarray(weight.transpose(2, 3, 1, 0).reshape(-1), np.float32)
-    _window_currents(np.arange(out * out, dtype=np.int64), out * out, np.arange(size * size, dtype=np.int64), start,
-                     lists, size, out, k, stride, w, c_out, blk, steps, width, cur)
+    _window_currents(np.arange(out * out, dtype=np.int64), out * out, np.arange(size * size, dtype=np.int64), masks,
+                     size, out, k, stride, w, c_out, blk, steps, width, cur)
     return cur.reshape(steps, out, out, c_out).transpose(0, 3, 1, 2)
