@@ -1,10 +1,13 @@
 """The compiled level-crossing kernel of dvsot.events: one interval of every pixel, events out in time order.
 
 The semantics are dvsot.events' (and docs/events.md's). This module only holds the numba code that
-implements them, so that the simulator's Python side stays a thin driver: one pass over the pixels
-counts and times the crossings (pixel order), a counting sort on the whole-microsecond time offset
-puts them in (time, pixel, crossing) order without a comparison sort. Both release the GIL, so frame
-decoding and file writing threads run beside them.
+implements them, so that the simulator's Python side stays a thin driver: a first pass over the
+pixels lists those that may fire, a second counts and times their crossings (pixel order), a counting
+sort on the whole-microsecond time offset puts them in (time, pixel, crossing) order without a
+comparison sort. All release the GIL, so frame decoding and file writing threads run beside them.
+Three first passes, one per input kind: log frames (interval_events), codes into a log table
+(coded_interval_events) and linear frames (linear_candidates, then linear_interval_events on the
+candidates' logs, which numpy computes: numba's log differs from numpy's in the last bit).
 """
 
 from __future__ import annotations
@@ -79,7 +82,7 @@ def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_ev
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _emit(i, l1, l0, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne):
-    """Pixel i's crossings from l0 (t0) to l1 (t1) into code and trel from index ne; its reference moved. Returns the new ne."""
+    """Pixel i's crossings from l0 (t0) to l1 (t1) into code and trel from index ne, its reference moved; the new ne."""
     rising, c, u0, u1, k_lo, k_hi = _levels(l1, l0, base[i], off[i], cp[i], cn[i])
     if k_hi < k_lo:
         return ne

@@ -28,8 +28,11 @@ Semantics (after ESIM, Rebecq et al. 2018), per pixel:
 * Events of one interval are sorted by time, ties by pixel index (y * width + x), then by crossing
   order. The same frames, timestamps, parameters and seed give bit-identical events.
 
-The per-pixel work is one compiled pass (dvsot.event_kernel) that emits each interval's events
-already in time order.
+The per-pixel work is compiled (dvsot.event_kernel) and emits each interval's events already in time
+order. Its first pass finds the few pixels that may fire: for log frames by comparing L with the
+reference; for linear frames (after the first) and CodedFrames (8/16-bit images with a table of their
+log intensities) by comparing the value as given with per-pixel bounds kept for the current reference,
+so that only those pixels get a log. Every input kind gives the events its log intensities would.
 """
 
 from __future__ import annotations
@@ -56,7 +59,7 @@ _LINEAR = object()  # EventSimulator._bounds_for when the first pass's bounds ar
 
 @dataclass(frozen=True)
 class CodedFrame:
-    """A frame as integer codes into a table: codes (height, width) uint8 or uint16; table[c] the log intensity of code c.
+    """A frame as integer codes into a table: codes (height, width) u1 or u2; table[c] the log intensity of code c.
 
     table is float64, one entry per value of the code type, increasing (dvsot.frames makes it for 8/16-bit
     images). The simulator then reads a byte or two a pixel where a float frame costs eight.
@@ -244,7 +247,7 @@ class EventSimulator:
         return self._t_prev, t_us
 
     def _finish(self, x, y, t, pol, t0: int, t1: int, kind: str | None, src: np.ndarray) -> EventBatch:
-        """The interval's signal events and noise as one batch; src (kind "codes"/"linear"; None: _last) is the frame now."""
+        """The interval's signal events and noise as one batch; src (kind "codes"/"linear"; None: _last) is kept."""
         signal = EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
         noise = self._noise(t0, t1)
         self._last_kind, self._last_src, self._t_prev = kind, src, t1
@@ -297,7 +300,7 @@ class EventSimulator:
         eps = self.params.log_eps
         if self._bounds_for is not _LINEAR:
             if self._lo_lin.shape != self._ref.shape:
-                self._lo_lin, self._hi_lin = np.empty(self._ref.shape, np.float32), np.empty(self._ref.shape, np.float32)
+                self._lo_lin, self._hi_lin = (np.empty(self._ref.shape, np.float32) for _ in range(2))
             linear_bounds(self._ref, self._gate_on, self._gate_off, eps, self._lo_lin, self._hi_lin)
             self._bounds_for = _LINEAR
         flat = np.ascontiguousarray(a).reshape(-1)

@@ -129,7 +129,7 @@ class FrameSource:
                 raise UserError(f"{self.path}: frame {i}: {exc}") from None
 
     def _image(self, p: Path, log_eps: float | None = None, coded: bool = False) -> np.ndarray | CodedFrame:
-        """One image file as a linear-luma frame, or as log intensities (runs on a decoding thread: OpenCV releases the GIL)."""
+        """One image file as a linear-luma frame or as log intensities (on a decoding thread: OpenCV releases the GIL)."""
         img = imread(p)
         if img is None:
             raise UserError(f"{p}: cannot read image")

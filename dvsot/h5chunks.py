@@ -30,7 +30,7 @@ def _fold(s: int) -> int:
 
 
 def fletcher32(data: bytes | np.ndarray) -> int:
-    """HDF5's Fletcher-32 checksum (H5_checksum_fletcher32) of bytes: big-endian 16-bit words, an odd last byte as a high half.
+    """HDF5's Fletcher-32 (H5_checksum_fletcher32) of bytes: big-endian 16-bit words, an odd last byte as a high half.
 
     HDF5 folds its two sums every 360 words, which keeps each congruent mod 65535 and positive once a
     word was; so the result is the closed form of the two sums' residues, summed here in int64 over

@@ -1,4 +1,4 @@
-"""Coded frames (integer codes into a log table) and linear frames give the events of their log intensities, in every mode."""
+"""Coded frames (codes into a log table) and linear frames give the events of their log intensities, in every mode."""
 
 from __future__ import annotations
 

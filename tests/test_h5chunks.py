@@ -1,4 +1,4 @@
-"""Chunks encoded outside HDF5 (dvsot.h5chunks) are the bytes HDF5's own filters store, and the writer's files read back."""
+"""Chunks encoded outside HDF5 (dvsot.h5chunks) are the bytes HDF5's filters store; the writer's files read back."""
 
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def test_shuffle_is_bytes_grouped_by_position():
 @pytest.mark.parametrize("dtype", [np.uint16, np.int64, np.uint8])
 @pytest.mark.parametrize("n", [4096, 4000, 1])
 def test_chunk_is_the_bytes_hdf5_stores(tmp_path, dtype, n):
-    """With zlib's deflate the encoded chunk equals HDF5's own, byte for byte (shuffle, level 1, Fletcher-32, padding)."""
+    """With zlib's deflate the encoded chunk is HDF5's own, byte for byte (shuffle, level 1, Fletcher-32, padding)."""
     rng = np.random.default_rng(n)
     values = np.cumsum(rng.integers(0, 3, n)).astype(dtype) if dtype == np.int64 else \
         rng.integers(0, 300, n).astype(dtype)

@@ -145,7 +145,7 @@ class DatasetWriter:
             self._flush()
 
     def _flush(self, final: bool = False) -> None:
-        """Hand the buffered events to the writer thread in whole chunks (all of them if final); the rest stays buffered.
+        """Hand the buffered events to the writer thread in whole chunks (all if final); the rest stays buffered.
 
         Whole chunks let the gzip columns go to the file as chunks encoded outside HDF5 (dvsot.h5chunks),
         and their compression overlaps with the caller's work.
