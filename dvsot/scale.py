@@ -112,16 +112,16 @@ target:
   size_m: 1.5
   trajectory: {interpolation: linear, keyframes: [{t: 0, location: [-1, 0, 0]}, {t: 0.01, location: [1, 0, 0]}]}
 background: {material: {texture: {type: noise, scale: 10}}}
-render: {threads: 1}
 sampling: {min_rate_hz: 200}
 """
 
 
-def warm_up() -> dict:
+def warm_up(host_workers: dict[str, int] | None = None, threads: int = 0) -> dict:
     """Pay a worker process's one-time costs on a 16x12 scene: {"warm_s": seconds, "worker"} or {"error", "worker"}.
 
     The bpy import, Cycles' first render, h5py and the event kernels' load (numba's cache) cost seconds once per
-    process; a run pays them before its first submit, so each scene's task_s and cpu_s are its own.
+    process; a run pays them before its first submit, so each scene's task_s and cpu_s are its own. The scene
+    renders with the threads the worker's scenes will use (`threads`, else its share of the machine's cores).
     """
     import tempfile
 
@@ -137,6 +137,7 @@ def warm_up() -> dict:
             from dvsot.scene_checks import visibility_warnings
 
             cfg = parse_scene(_WARM_SCENE, "warm-up scene", Path(tmp))
+            cfg.render.threads = threads or (_threads_for_this_worker(host_workers) if host_workers else 0)
             visibility_warnings(cfg)
             generate(cfg, Path(tmp) / "warm_up.h5", _WARM_SCENE, progress=False)
     except Exception as exc:  # a worker that cannot render says so in each scene's own error
@@ -145,14 +146,19 @@ def warm_up() -> dict:
     return {"warm_s": round(time.perf_counter() - t0, 3), "worker": worker_address()}
 
 
-def warm_workers(client, timeout_s: float = 300.0) -> list[dict]:
+def warm_workers(client, threads: int = 0, timeout_s: float = 300.0) -> list[dict]:
     """warm_up() once on every worker the scheduler knows now (pinned to each), waiting at most timeout_s.
 
-    Workers that join later pay these costs in their first scene.
+    threads: the render threads the scenes will set (0: each worker's share of its machine's cores). Workers
+    that join later pay these costs in their first scene.
     """
+    import uuid
+
     from distributed import wait
 
-    futures = [client.submit(warm_up, pure=False, key=f"warm-up-{k}", workers=[w], allow_other_workers=False)
+    hosts, run = host_workers(client), uuid.uuid4().hex[:8]
+    futures = [client.submit(warm_up, hosts, threads, pure=False, key=f"warm-up-{run}-{k}", workers=[w],
+                             allow_other_workers=False)
                for k, w in enumerate(client.scheduler_info(n_workers=-1)["workers"])]
     try:
         wait(futures, timeout=timeout_s)
@@ -218,7 +224,8 @@ def run_scenes(tasks: list[SceneTask], manifest_path: Path, scheduler: str | Non
         with Cluster(scheduler) as client:
             manifest.timing["start_s"] = round(time.perf_counter() - t0, 3)
             t0 = time.perf_counter()
-            warm_workers(client)
+            fixed = {t.overrides.get("render.threads") for t in tasks}  # threads set for every scene by --set
+            warm_workers(client, fixed.pop() if len(fixed) == 1 and isinstance(next(iter(fixed)), int) else 0)
             manifest.timing["warm_s"] = round(time.perf_counter() - t0, 3)
             t0 = time.perf_counter()
             _run_dask(client, tasks, todo, manifest, retries, report)
