@@ -10,12 +10,21 @@ then the table prints mean and standard deviation over seeds.
         --seeds 5 --epochs 2 --segments-per-epoch 400 --out runs/ablation     # one row per setting
     python -m benchmarks.ablation --rows paper loss_linear loss_basic --seeds 10 ...  # Fig. 7A
     python -m benchmarks.ablation --ci --rows paper loss_linear --seeds 2   # the two tiny CI scenes, quick
+    python -m benchmarks.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
+
+With --scheduler local:N | tcp://HOST:PORT each (row, seed) is one task on Dask (dvsot.cluster.run_tasks, as
+`dvsot generate` and `dvsot bench` use it); the workers need the data files and --out at the same paths. A
+run that fails (it raised, or its worker died) is appended to runs.jsonl as {row, seed, attempt, worker,
+error, final} and resubmitted, on another worker while there is one, up to --retries times while the others
+go on; a tracker-only row whose network's training finally failed is recorded failed without running. The
+exit status is 1 if any run finally failed (its row's table cell is then over fewer seeds).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 from pathlib import Path
 
@@ -129,10 +138,59 @@ def _ci_files(tmp: Path) -> tuple[list[Path], list[Path]]:
     return [files["ci_train"]], [files["ci_test"]]
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Command line of the ablation."""
+def read_log(log: Path) -> list[dict]:
+    """The records of runs.jsonl: results ({row, seed, A, R, ...}) and failed attempts (with "error")."""
+    return [json.loads(line) for line in log.read_text().splitlines() if line.strip()] if log.is_file() else []
+
+
+def _append(log: Path, record: dict) -> None:
+    with log.open("a") as fh:
+        fh.write(json.dumps(record) + "\n")
+
+
+def _run_local(phases: list[list[tuple]], args: tuple, jobs: int, on_result) -> list:
+    """--jobs: the phases in a pool of processes (a failing run stops the ablation, as it always has)."""
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    with ProcessPoolExecutor(jobs) as pool:
+        for phase in phases:
+            futures = [pool.submit(run_one, row, s, *args) for row, s in phase]
+            for fut in as_completed(futures):
+                on_result(fut.result())
+    return []
+
+
+def _run_dask(phases: list[list[tuple]], args: tuple, scheduler: str, retries: int, on_result, on_failure) -> list:
+    """--scheduler: each phase's (row, seed) runs as Dask tasks on one cluster; the (row, seed)s that finally failed."""
+    from dvsot.cluster import Cluster, Failure, run_tasks
+
+    failed: list[tuple] = []
+    with Cluster(scheduler) as client:
+        for phase in phases:
+            runnable = []
+            for row, s in phase:  # a tracker-only row needs its network's checkpoint from the first phase
+                if (training_key(row), s) in failed:
+                    failure = Failure(f"its network's training run ({training_key(row)}, seed {s}) failed")
+                    on_failure(row, s, 1, failure, True)
+                    failed.append((row, s))
+                else:
+                    runnable.append((row, s))
+            tries = [0] * len(runnable)
+
+            def failed_attempt(k: int, failure, final: bool, runnable=runnable, tries=tries) -> None:
+                tries[k] += 1
+                on_failure(*runnable[k], tries[k], failure, final)
+                if final:
+                    failed.append(runnable[k])
+
+            run_tasks(client, run_one, [(row, s, *args) for row, s in runnable], retries,
+                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run")
+    return failed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line of the ablation: 0, or 1 if a run finally failed (with --scheduler)."""
+    from dvsot.cluster import parse_scheduler
     from dvsot.dataset import find_datasets
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -151,14 +209,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
     p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
     p.add_argument("--jobs", type=int, default=1, help="(row, seed) runs in parallel processes")
+    p.add_argument("--scheduler", help="run each (row, seed) as a Dask task: local:N (a LocalCluster of N "
+                   "single-threaded workers) or tcp://HOST:PORT (a running cluster)")
+    p.add_argument("--retries", type=int, default=1, help="with --scheduler: resubmit a failed run this many times")
     p.add_argument("--out", required=True, help="directory for checkpoints and runs.jsonl (reused by a rerun)")
     a = p.parse_args(argv)
+    if a.scheduler:
+        parse_scheduler(a.scheduler)  # a bad spec: one line, before anything runs
+    if a.retries < 0:
+        p.error(f"--retries must be >= 0, got {a.retries}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     budget = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
               "lr": a.lr, "max_minutes": a.minutes}
     log = out / "runs.jsonl"
-    done = [json.loads(line) for line in log.read_text().splitlines()] if log.is_file() else []
+    done = [r for r in read_log(log) if "error" not in r]  # failed attempts are run again
     have = {(r["row"], r["seed"]) for r in done}
     seeds = range(a.first_seed, a.first_seed + a.seeds)
     todo = [(row, s) for row in a.rows for s in seeds if (row, s) not in have]
@@ -166,27 +231,54 @@ def main(argv: list[str] | None = None) -> int:
         todo.sort(key=lambda rs: rs[1])
     # rows that train first; tracker-only rows (which reuse those networks) once they exist
     phases = [[rs for rs in todo if training_key(rs[0]) == rs[0]], [rs for rs in todo if training_key(rs[0]) != rs[0]]]
-    with tempfile.TemporaryDirectory() as tmp:
-        if a.ci:
-            train_files, test_files = _ci_files(Path(tmp))
-        else:
-            if not (a.train and a.test):
-                p.error("give --train and --test, or --ci")
-            train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
-        with ProcessPoolExecutor(a.jobs) as pool:
-            for phase in phases:
-                futures = [pool.submit(run_one, row, s, train_files, test_files, budget, out, a.candidates,
-                                       a.max_segments) for row, s in phase]
-                for fut in as_completed(futures):
-                    r = fut.result()
-                    with log.open("a") as fh:
-                        fh.write(json.dumps(r) + "\n")
-                    done.append(r)
-                    print(json.dumps(r), flush=True)
+    failed: list = []
+    if todo:  # nothing to run: no scene rendered, no cluster started
+        with tempfile.TemporaryDirectory() as tmp:
+            if a.ci:
+                train_files, test_files = _ci_files(Path(tmp))
+            else:
+                if not (a.train and a.test):
+                    p.error("give --train and --test, or --ci")
+                train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
+            args = (train_files, test_files, budget, out, a.candidates, a.max_segments)
+
+            def on_result(r: dict) -> None:
+                _append(log, r)
+                done.append(r)
+                print(json.dumps(r), flush=True)
+
+            def on_failure(row: str, seed: int, attempt: int, failure, final: bool) -> None:
+                _append(log, {"row": row, "seed": seed, "attempt": attempt, "worker": failure.worker,
+                              "error": failure.error, "final": final})
+                print(f"ablation: {row} seed {seed} failed{f' on {failure.worker}' if failure.worker else ''} "
+                      f"({failure.error}){'' if final else '; retrying'}", file=sys.stderr, flush=True)
+
+            if a.scheduler:
+                failed = _run_dask(phases, args, a.scheduler, a.retries, on_result, on_failure)
+            else:
+                failed = _run_local(phases, args, a.jobs, on_result)
     runs = [r for r in done if r["row"] in a.rows and r["seed"] in seeds]
     print(format_table(summarise(runs)))
+    if failed:
+        print(f"ablation: {len(failed)} run(s) failed: " + ", ".join(f"{r} seed {s}" for r, s in failed),
+              file=sys.stderr)
+        return 1
     return 0
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """main, with bad input (exit 2) and a run that could not start (exit 1) as one line on stderr."""
+    from dvsot.errors import RunError, UserError
+
+    try:
+        return main(argv)
+    except UserError as exc:
+        print(f"ablation: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"ablation: {exc}", file=sys.stderr)
+        return 1
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(cli())
