@@ -78,13 +78,13 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
     ckpt = workdir / f"{training_key(row)}_seed{seed}.pt"
     if ckpt.is_file():
         model, meta = load_checkpoint(ckpt)
-        minutes = meta.get("history", {}).get("minutes")
+        minutes, silent = meta.get("history", {}).get("minutes"), meta.get("history", {}).get("silent")
     else:
         cfg = TrainConfig(seed=seed, network=NetworkConfig(**net_kw), val_every=10**9, val_segments=2,
                           **budget, **train_kw)
         model, history = train(train_files, cfg, progress=False)
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
-        minutes = history["minutes"]
+        minutes, silent = history["minutes"], history.get("silent")
     ious, energy = [], []
     for f in test_files:
         bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw),
@@ -97,7 +97,7 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
             energy.append(e["ac_ops"])
     s = pooled(ious)
     return {"row": row, "seed": seed, "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore,
-            "segments": s.segments, "train_minutes": minutes,
+            "segments": s.segments, "train_minutes": minutes, "silent": silent,
             "ac_ops_per_segment": float(np.mean(energy)) if energy else None}
 
 
@@ -108,19 +108,20 @@ def summarise(runs: list[dict]) -> dict:
         rs = [r for r in runs if r["row"] == row]
         keys = METRICS + ("ac_ops_per_segment",)
         vals = {k: [r[k] for r in rs if r.get(k) is not None] for k in keys}
-        out[row] = {"seeds": len(rs), "mean": {k: float(np.mean(v)) if v else None for k, v in vals.items()},
+        out[row] = {"seeds": len(rs), "silent": sum(bool(r.get("silent")) for r in rs),
+                    "mean": {k: float(np.mean(v)) if v else None for k, v in vals.items()},
                     "std": {k: float(np.std(v)) if v else None for k, v in vals.items()}}
     return out
 
 
 def format_table(summary: dict) -> str:
     """The ablation as a markdown table: mean +- std over seeds per row."""
-    lines = ["| row | A | R | ARscore | AC per segment | seeds |", "|---|---|---|---|---|---|"]
+    lines = ["| row | A | R | ARscore | AC per segment | seeds | silent |", "|---|---|---|---|---|---|---|"]
     for row, r in summary.items():
         cells = [f"{r['mean'][k]:.3f} ± {r['std'][k]:.3f}" for k in METRICS]
         ops = r["mean"]["ac_ops_per_segment"]
-        lines.append(f"| {row} | " + " | ".join(cells) + f" | {ops:.2e} | {r['seeds']} |" if ops is not None else
-                     f"| {row} | " + " | ".join(cells) + f" | | {r['seeds']} |")
+        lines.append(f"| {row} | " + " | ".join(cells) + (f" | {ops:.2e}" if ops is not None else " |")
+                     + f" | {r['seeds']} | {r.get('silent', 0)} |")
     return "\n".join(lines)
 
 

@@ -135,3 +135,20 @@ def test_a_dir_output_is_replaced_whole(tmp_path):
         (staged / "000000.npy").write_text("new")
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["000000.npy"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frames", "run.json"]
+
+
+def test_the_writability_probe_leaves_nothing_when_a_signal_lands_inside_it(tmp_path, monkeypatch):
+    """An interrupt between the probe's create and its unlink still removes the probe (SIGTERM raced it once)."""
+    import dvsot.outputs as outputs
+
+    real_close = os.close
+
+    def close_then_interrupt(fd):
+        real_close(fd)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outputs.os, "close", close_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        outputs.check_writable(tmp_path, "-o")
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
