@@ -118,7 +118,10 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
 
 def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress: bool,
               keep_frames: str | Path | None) -> dict:
-    from dvsot.blender import BlenderScene, blender_version
+    # a signal raised inside bpy's import leaves Blender half set up and the process dies of SIGSEGV at exit;
+    # record it during the import and raise it after, like a signal during a render
+    with interrupts.deferred():
+        from dvsot.blender import BlenderScene, blender_version
 
     start = time.perf_counter()
     # a long scene spends minutes here and in the scene build before its bar appears: say what is going on
