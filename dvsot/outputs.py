@@ -47,10 +47,11 @@ def check_writable(directory: str | os.PathLike, what: str) -> None:
     probe = staging.temp_name(d / "probe", suffix="")
     try:
         os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        os.unlink(probe)
     except OSError as exc:
         raise UserError(f"{what}: cannot write in {d} ({exc.strerror or exc})") from None
-    finally:  # also when a signal lands between the create and the unlink: the name is this run's alone
-        with contextlib.suppress(FileNotFoundError):
+    finally:  # gone already, unless a signal landed between the create and the unlink (the name is this run's)
+        with contextlib.suppress(OSError):
             os.unlink(probe)
 
 
