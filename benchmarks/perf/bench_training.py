@@ -2,13 +2,19 @@
 the reference loop of torch ops; print JSON.
 
     python -m benchmarks.perf.bench_training [--data FILE.h5] [--checkpoint CKPT] [--steps 5] [--repeat 3]
-        [--batch-segments 2] [--threads 1]
+        [--batch-segments 2] [--threads 1] [--full DATA_DIR]
 
 A step is what `dvsot train` runs per mini-batch: the samples of --batch-segments segments (20
 positive + 40 negative each), encoded as 107x107 canvases. Without --data a synthetic 160x120
 sequence (a textured square, made in numpy) gives the segments. Each figure is the best of --repeat
 runs of --steps steps after one warm-up step (which compiles the numba kernels); the two paths start
 from the same weights and batches.
+
+The checkpoint's recorded budget (its .json's train_config) gives `projected_minutes`: its step count
+times the compiled path's time per step (validation and data loading not included). `--full DATA_DIR`
+measures instead of projecting: it trains a new network with that train_config on the files of DIR
+named in the checkpoint's data list, as `dvsot train` does, and prints the wall and CPU minutes
+(goal of issue 12: at most 20 minutes on this machine).
 """
 
 from __future__ import annotations
@@ -60,6 +66,30 @@ def time_steps(model, batches, reference: bool, steps: int, repeat: int) -> dict
             "losses": [round(v, 6) for v in losses]}
 
 
+def budget_steps(train_config: dict) -> int:
+    """Optimiser steps of a training budget, given enough segments: epochs x (segments per epoch // per step)."""
+    return int(train_config["epochs"]) * (int(train_config["segments_per_epoch"]) // int(train_config["batch_segments"]))
+
+
+def full_training(meta: dict, data_dir: Path, threads: int) -> dict:
+    """Train a new network with the checkpoint's recorded train_config on its training files found in data_dir;
+    wall and CPU minutes."""
+    from sctn.train import TrainConfig, train
+
+    names = [d["name"] for d in meta.get("data", []) if d.get("split", "train") == "train"]
+    files = [data_dir / f"{n}.h5" for n in names]
+    missing = [str(f) for f in files if not f.is_file()]
+    if not names or missing:
+        raise SystemExit(f"{data_dir}: --full needs the checkpoint's training files, missing: {missing or 'its data list'}")
+    cfg = TrainConfig(**meta["train_config"])
+    torch.set_num_threads(threads)
+    start, cpu = time.perf_counter(), time.process_time()
+    _, history = train(files, cfg, progress=False, log=lambda *a, **k: None)
+    return {"files": names, "steps": history["steps"], "minutes": round((time.perf_counter() - start) / 60, 2),
+            "cpu_minutes": round((time.process_time() - cpu) / 60, 2), "silent": history.get("silent"),
+            "goal_minutes": 20}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
@@ -68,13 +98,15 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--batch-segments", type=int, default=2)
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--full", type=Path, metavar="DATA_DIR",
+                        help="also train the checkpoint's whole recorded budget on DIR's files and time it")
     args = parser.parse_args()
     from dvsot.dataset import Dataset
     from sctn.checkpoint import load_checkpoint
     from sctn.train import segment_batch, usable_segments
 
     torch.set_num_threads(args.threads)
-    model, _ = load_checkpoint(args.checkpoint)
+    model, meta = load_checkpoint(args.checkpoint)
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(args.data) if args.data else None
@@ -93,11 +125,21 @@ def main() -> None:
                                              [(ds.width, ds.height)] * len(segs), rng, model.cfg))
     runs = [time_steps(model, batches, reference, args.steps, args.repeat) for reference in (False, True)]
     same = runs[0]["losses"] == runs[1]["losses"]
+    budget = {}
+    if "train_config" in meta:
+        steps = budget_steps(meta["train_config"])
+        budget = {"recorded_budget_steps": steps, "recorded_batch_segments": meta["train_config"]["batch_segments"],
+                  "projected_minutes": round(steps * runs[0]["s_per_step"] / 60, 2),
+                  "recorded_minutes": round(meta.get("history", {}).get("minutes", float("nan")), 2)}
+        if args.batch_segments != meta["train_config"]["batch_segments"]:
+            budget["note"] = "--batch-segments differs from the recorded budget: the projection scales a different step"
+    if args.full:
+        budget["full_training"] = full_training(meta, args.full, args.threads)
     print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"), "threads": args.threads,
                       "network": {"channels": model.cfg.channels, "fc": model.cfg.fc},
                       "samples_per_step": int(batches[0][0].shape[0]), "runs": runs,
                       "speedup": round(runs[1]["s_per_step"] / runs[0]["s_per_step"], 2),
-                      "same_losses": same}, indent=2))
+                      "same_losses": same, **budget}, indent=2))
 
 
 if __name__ == "__main__":
