@@ -150,6 +150,40 @@ def test_foreign_truncated_and_damaged_files_give_one_line_errors(tmp_path, samp
             ds.events(0, ds.duration_us)
 
 
+def test_the_read_back_compares_every_stored_chunk_with_the_one_written(tmp_path, monkeypatch):
+    from dvsot.dataset import writer as writer_module
+    from dvsot.errors import RunError
+
+    rng = np.random.default_rng(2)
+    path = tmp_path / "seq.h5"
+    write_file(path, random_events(rng, 500, 95_000), 100_000, name="old")
+    before = path.read_bytes()
+    digest = writer_module.chunk_digest
+    seen = []
+
+    def flipped(data: bytes) -> bytes:  # as if HDF5 stored /events/y's chunk with a flipped bit
+        seen.append(len(data))
+        return digest(data[:-1] + bytes([data[-1] ^ 1])) if len(seen) == 2 else digest(data)  # columns x, y, t, p
+
+    monkeypatch.setattr(writer_module, "chunk_digest", flipped)
+    with pytest.raises(RunError, match=r"seq\.h5: the file just written failed its read-back check.*chunk 0 of /events/y"):
+        write_file(path, random_events(rng, 500, 95_000), 100_000, name="new")
+    assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["seq.h5"]
+    monkeypatch.setattr(writer_module, "chunk_digest", digest)
+    write_file(path, random_events(rng, 500, 95_000), 100_000, name="new")  # and an intact one lands
+    with Dataset(path) as ds:
+        assert ds.attrs["name"] == "new"
+        ds.verify()
+
+
+def test_events_off_the_sensor_are_refused_when_appended(tmp_path):
+    ev = EventBatch(np.array([0, 64], np.uint16), np.array([0, 1], np.uint16), np.array([5, 6]), np.array([1, 0], np.uint8))
+    with pytest.raises(ValueError, match="event x must lie in 0..63"):
+        with DatasetWriter(tmp_path / "a.h5", 64, 48) as w:
+            w.append_events(ev)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_find_datasets_by_directory_glob_list_and_split(tmp_path):
     rng = np.random.default_rng(4)
     for name, split in [("a", "train"), ("b", "test"), ("c", "train")]:
@@ -171,7 +205,7 @@ def test_a_file_that_fails_its_read_back_never_replaces_the_old_one(tmp_path, mo
     write_file(path, random_events(rng, 500, 95_000), 100_000, name="old")
     before = path.read_bytes()
 
-    def corrupt_chunk(self):  # what a chunk failing its Fletcher-32 checksum looks like to the reader
+    def corrupt_chunk(self, stored=None):  # what a chunk failing its Fletcher-32 checksum looks like to the reader
         raise self._damaged("cannot read /events/y events 0..499, its stored data is corrupt")
 
     monkeypatch.setattr(Dataset, "verify", corrupt_chunk)
