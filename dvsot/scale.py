@@ -2,7 +2,8 @@
 
 Each scene is rendered by `render_task` in a worker process, one at a time per process (Blender is
 process-global), with `render.threads` (when the scene leaves it at 0, all cores) set to the worker's
-share of its machine's cores. Every worker first renders a 16x12 scene (`warm_up`: the bpy import, Cycles'
+share of its machine's cores; with several workers on a machine each process is bound to its share
+(warm_up), since Blender's idle threads would otherwise spin on the others' CPUs. Every worker first renders a 16x12 scene (`warm_up`: the bpy import, Cycles'
 first render, the event kernels), so a scene's task time is its own. Results are collected one by one
 (dvsot.cluster.run_tasks): a failure is recorded in the manifest with its one-line error and the scene is
 resubmitted, preferring another worker, up to `retries` times.
@@ -57,6 +58,46 @@ def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
     return max(1, cores // max(1, host_workers.get(host, 1)))
 
 
+def cpu_share(cpus: list[int], slot: int, workers_here: int) -> set[int] | None:
+    """The CPUs of worker `slot` of `workers_here` on a machine with these CPUs: an equal share, or None when
+    the worker has them all (one worker) or there are fewer CPUs than workers."""
+    share = len(cpus) // max(1, workers_here)
+    if workers_here <= 1 or share < 1 or not 0 <= slot < workers_here:
+        return None
+    return set(sorted(cpus)[slot * share:(slot + 1) * share])
+
+
+def pin_process(cpus: set[int]) -> None:
+    """Bind every thread of this process (and so the threads they start) to these CPUs (Linux)."""
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            os.sched_setaffinity(int(tid), cpus)
+        except OSError:  # a thread that has just ended
+            pass
+
+
+def _pin_to_share(host_workers: dict[str, int], slot: int) -> list[int] | None:
+    """Bind this worker process to its share of its machine's CPUs (slot among the workers there); the CPUs or None.
+
+    Why: Blender's task scheduler (oneTBB) starts a thread per CPU it may use and keeps them spinning in
+    sched_yield between tasks, so a worker rendering on one thread also keeps its other CPUs busy, and
+    workers on one machine slow each other down: bound to its share, each competes only with itself.
+    """
+    if not hasattr(os, "sched_setaffinity") or not os.path.isdir("/proc/self/task"):
+        return None
+    try:
+        from distributed import get_worker
+
+        host = get_worker().address.rpartition(":")[0]
+    except (ImportError, ValueError):
+        return None
+    cpus = cpu_share(sorted(os.sched_getaffinity(0)), slot, host_workers.get(host, 1))
+    if cpus is None:
+        return None
+    pin_process(cpus)
+    return sorted(cpus)
+
+
 def _real_bpy_first() -> None:
     """Drop Blender's script folders from sys.path before bpy is imported here.
 
@@ -95,6 +136,8 @@ def render_task(task: SceneTask, host_workers: dict[str, int] | None = None) -> 
             # whatever else ran on the machine
             summary["cpu_s"] = round(time.process_time() - cpu_task, 3)
             summary["render_threads"] = cfg.render.threads
+            if hasattr(os, "sched_getaffinity"):
+                summary["cpus"] = sorted(os.sched_getaffinity(0))  # the worker's share (warm_up), or every CPU
             summary["warnings"] = warnings
     except Exception as exc:  # returned, not raised: the head records it and retries (no traceback in worker logs)
         return {"error": exception_line(exc, 300), "worker": worker}
@@ -116,8 +159,10 @@ sampling: {min_rate_hz: 200}
 """
 
 
-def warm_up(host_workers: dict[str, int] | None = None, threads: int = 0) -> dict:
-    """Pay a worker process's one-time costs on a 16x12 scene: {"warm_s": seconds, "worker"} or {"error", "worker"}.
+def warm_up(host_workers: dict[str, int] | None = None, threads: int = 0, slot: int | None = None) -> dict:
+    """Pay a worker process's one-time costs on a 16x12 scene: {"warm_s": seconds, "worker", "cpus"} or {"error",
+    "worker"}. With `slot` (its index among the workers on its machine) the process is first bound to its share
+    of the machine's CPUs ("cpus"; None: not bound, it has them all).
 
     The bpy import, Cycles' first render, h5py and the event kernels' load (numba's cache) cost seconds once per
     process; a run pays them before its first submit, so each scene's task_s and cpu_s are its own. The scene
@@ -129,8 +174,11 @@ def warm_up(host_workers: dict[str, int] | None = None, threads: int = 0) -> dic
     if _WARM:
         return {"warm_s": 0.0, "worker": worker_address()}
     t0 = time.perf_counter()
+    cpus = None
     try:
         with _RENDER_LOCK, tempfile.TemporaryDirectory(prefix="dvsot-warm-up-") as tmp:
+            if slot is not None and host_workers:
+                cpus = _pin_to_share(host_workers, slot)  # before bpy starts its threads
             _real_bpy_first()
             from dvsot.config import parse_scene
             from dvsot.generate import generate
@@ -143,7 +191,7 @@ def warm_up(host_workers: dict[str, int] | None = None, threads: int = 0) -> dic
     except Exception as exc:  # a worker that cannot render says so in each scene's own error
         return {"error": exception_line(exc, 300), "worker": worker_address()}
     _WARM = True
-    return {"warm_s": round(time.perf_counter() - t0, 3), "worker": worker_address()}
+    return {"warm_s": round(time.perf_counter() - t0, 3), "worker": worker_address(), "cpus": cpus}
 
 
 def warm_workers(client, threads: int = 0, timeout_s: float = 300.0) -> list[dict]:
@@ -157,9 +205,12 @@ def warm_workers(client, threads: int = 0, timeout_s: float = 300.0) -> list[dic
     from distributed import wait
 
     hosts, run = host_workers(client), uuid.uuid4().hex[:8]
-    futures = [client.submit(warm_up, hosts, threads, pure=False, key=f"warm-up-{run}-{k}", workers=[w],
+    addresses = sorted(client.scheduler_info(n_workers=-1)["workers"])
+    slots = {w: sum(1 for v in addresses[:k] if v.rpartition(":")[0] == w.rpartition(":")[0])
+             for k, w in enumerate(addresses)}  # each worker's index among those on its machine
+    futures = [client.submit(warm_up, hosts, threads, slots[w], pure=False, key=f"warm-up-{run}-{k}", workers=[w],
                              allow_other_workers=False)
-               for k, w in enumerate(client.scheduler_info(n_workers=-1)["workers"])]
+               for k, w in enumerate(addresses)]
     try:
         wait(futures, timeout=timeout_s)
     except TimeoutError:
@@ -243,7 +294,7 @@ def _record(manifest: Manifest, i: int, outcome: dict | Failure, final: bool) ->
     if _ok(outcome):
         rec["attempts"].append({"worker": outcome.get("worker"), "error": None, "wall_s": outcome.get("wall_s"),
                                 "task_s": outcome.get("task_s"), "cpu_s": outcome.get("cpu_s"),
-                                "render_threads": outcome.get("render_threads")})
+                                "render_threads": outcome.get("render_threads"), "cpus": outcome.get("cpus")})
         rec.update(status="done", error=None, events=outcome.get("events"), frames=outcome.get("frames"),
                    warnings=outcome.get("warnings") or [])
     else:

@@ -43,6 +43,16 @@ def cores():
     return len(os.sched_getaffinity(0))
 
 
+def test_each_worker_on_a_machine_gets_its_own_share_of_the_cpus():
+    from dvsot.scale import cpu_share
+
+    assert [cpu_share([0, 1], k, 2) for k in range(2)] == [{0}, {1}]
+    assert [cpu_share([4, 5, 6, 7, 8], k, 2) for k in range(2)] == [{4, 5}, {6, 7}]
+    assert cpu_share([0, 1], 0, 1) is None  # one worker has them all
+    assert cpu_share([0, 1], 2, 3) is None  # more workers than CPUs: not bound
+    assert cpu_share([0, 1, 2, 3], 5, 2) is None
+
+
 def test_local_cluster_records_a_failure_retried_elsewhere_and_resume_renders_only_what_is_missing(tmp_path, capsys):
     import bpy  # noqa: F401  as after any render in this process: the workers inherit Blender's sys.path
 
@@ -72,6 +82,8 @@ def test_local_cluster_records_a_failure_retried_elsewhere_and_resume_renders_on
     stamps = {}
     for name in ("tiny_00000", "tiny_00002"):
         assert recs[name]["status"] == "done" and recs[name]["attempts"][0]["render_threads"] == max(1, cores() // 2)
+        # two workers on this machine: each bound to its own half of the CPUs (one CPU: both have it all)
+        assert len(recs[name]["attempts"][0]["cpus"]) == (cores() // 2 if cores() >= 2 else 1)
         with Dataset(out / f"{name}.h5") as ds:
             ds.verify()
             assert ds.num_events > 0 and ds.attrs["scene_yaml"].startswith(f"# variant {name[-1]} of tiny.yaml")

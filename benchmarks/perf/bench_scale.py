@@ -24,9 +24,10 @@ rounds interleave the configurations, so a change of the machine's load hits all
 - ceiling: 2 copies of a CPU-bound Python loop at once against 1 alone (per round): the best any 2-process
   speed-up can be on this machine at that moment (below 2 when other jobs hold the cores).
 - render_ceiling: the same for the task itself, without Dask: 2 plain processes each generating the
-  template's first variant (render.threads 1) at once against 1 alone (per round). Cycles shares caches
-  and memory bandwidth, which a Python loop does not: this is the 2-worker speed-up the machine allows
-  for these scenes, and one.2 against it is what the engine loses.
+  template's first variant (render.threads 1, each bound to its own CPU as dvsot.scale binds workers) at
+  once against 1 alone (per round). Cycles shares caches and memory bandwidth, which a Python loop does
+  not: this is the 2-worker speed-up the machine allows for these scenes; one.2 against it is what the
+  engine loses.
 Default task: 160x120 for 0.1 s (~45 frames), where rendering is ~80% of a scene's CPU; the issue's tiny
 80x60 50 ms variants (`--size 80x60 --duration 0.05`) spend about half of it in fixed per-scene costs.
 --project renders one variant of blender_scenes/templates/dvsot21_random.yaml at 640x480 for 0.05 s to measure
@@ -99,10 +100,13 @@ def ceiling(pool: ProcessPoolExecutor, n: int = 3_000_000) -> float:
     return round(2 * alone / max(both), 2)
 
 
-def _render(template_text: str, repeats: int) -> float:
+def _render(template_text: str, repeats: int, cpus: set[int] | None = None) -> float:
     """Seconds this process takes to generate the template's first variant `repeats` times (render.threads 1),
-    after one untimed run (bpy's import and Cycles' first render)."""
+    after one untimed run (bpy's import and Cycles' first render); bound to `cpus` if given, else to every CPU."""
     from dvsot.config import parse_scene
+    from dvsot.scale import pin_process
+
+    pin_process(cpus if cpus is not None else os.sched_getaffinity(os.getppid()))
     from dvsot.generate import generate
     from dvsot.templates import draw_variants, read_template
 
@@ -120,8 +124,13 @@ def _render(template_text: str, repeats: int) -> float:
 
 def render_ceiling(pool: ProcessPoolExecutor, template_text: str, repeats: int = 2) -> float:
     """Throughput of 2 processes generating the first variant at once over 1 alone (2.0 if they never meet)."""
+    from dvsot.scale import cpu_share
+
     alone = pool.submit(_render, template_text, repeats).result()
-    both = [f.result() for f in [pool.submit(_render, template_text, repeats) for _ in range(2)]]
+    cpus = sorted(os.sched_getaffinity(0))
+    # each bound to its own share, as dvsot.scale binds 2 workers on one machine
+    both = [f.result() for f in [pool.submit(_render, template_text, repeats, cpu_share(cpus, k, 2))
+                                 for k in range(2)]]
     return round(2 * alone / max(both), 2)
 
 
