@@ -184,6 +184,17 @@ def test_events_off_the_sensor_are_refused_when_appended(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_find_datasets_in_a_directory_skips_a_file_another_run_is_writing(tmp_path):
+    rng = np.random.default_rng(5)
+    write_file(tmp_path / "a.h5", random_events(rng, 50, 9_000), 10_000)
+    w = DatasetWriter(tmp_path / "b.h5", 64, 48)  # staged as a hidden temp beside b.h5 until it closes
+    try:
+        assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".b.h5.tmp")]
+        assert [p.name for p in find_datasets(tmp_path)] == ["a.h5"]
+    finally:
+        w.abort()
+
+
 def test_find_datasets_by_directory_glob_list_and_split(tmp_path):
     rng = np.random.default_rng(4)
     for name, split in [("a", "train"), ("b", "test"), ("c", "train")]:

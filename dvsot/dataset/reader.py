@@ -280,8 +280,8 @@ def find_datasets(spec: str | os.PathLike | list, split: str | None = None, veri
     paths: list[Path] = []
     for item in specs:
         p = Path(item)
-        if p.is_dir():
-            found = sorted(p.glob("*.h5"))
+        if p.is_dir():  # as the glob DIR/*.h5 does: no hidden files (another run's staged outputs among them)
+            found = sorted(f for f in p.glob("*.h5") if not f.name.startswith("."))
         elif any(ch in str(item) for ch in "*?["):
             found = sorted(Path(x) for x in globmod.glob(str(item)))
         elif p.exists():  # a file, or a FIFO or device: Dataset says what it is
