@@ -42,10 +42,10 @@ def _child_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def _timed(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float, str]:
+def _timed(cmd: list[str], env: dict[str, str] | None = None, cwd: str | None = None) -> tuple[float, float, str]:
     """(wall s, CPU s, stdout) of one subprocess run; a failure raises with its stderr."""
     c0, a = _child_cpu(), time.perf_counter()
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=cwd)
     wall, cpu = time.perf_counter() - a, _child_cpu() - c0
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(cmd[:4])} ... failed ({done.returncode}): {done.stderr.strip()[-400:]}")
@@ -91,13 +91,23 @@ def main() -> None:
                 name = f"dvsot:{tree}" if tree else "dvsot"
                 env = dict(os.environ)
                 if tree:
-                    env["PYTHONPATH"] = os.pathsep.join(p for p in (tree, env.get("PYTHONPATH")) if p)
-                wall, cpu, out = _timed([sys.executable, "-m", "dvsot.cli", "simulate", args.frames, "--timestamps",
-                                         args.timestamps, "-o", f"{tmp}/out{k}.h5", "--quiet"], env)
+                    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(Path(tree).resolve()), env.get("PYTHONPATH")) if p)
+                # run from the temp directory: `python -m` puts the working directory first on sys.path, so
+                # from inside a checkout its dvsot, not the tree's, would be timed
+                wall, cpu, out = _timed([sys.executable, "-m", "dvsot.cli", "simulate", str(Path(args.frames).resolve()),
+                                         "--timestamps", str(Path(args.timestamps).resolve()), "-o",
+                                         f"{tmp}/out{k}.h5", "--quiet"], env, cwd=tmp)
                 walls.setdefault(name, []).append(wall)
                 cpus.setdefault(name, []).append(cpu)
                 events[name] = json.loads(out.strip().splitlines()[-1])["events"]
-    result = {"frames": frames, "input": args.frames, "runs": args.runs, "events": events,
+    imported = {}  # which dvsot each variant ran: a tree that is not first on the path would time another one
+    for tree in trees:
+        env = dict(os.environ, PYTHONPATH=str(Path(tree).resolve())) if tree else None
+        with tempfile.TemporaryDirectory() as where:
+            imported[f"dvsot:{tree}" if tree else "dvsot"] = subprocess.run(
+                [sys.executable, "-c", "import dvsot; print(dvsot.__file__)"], env=env, cwd=where,
+                capture_output=True, text=True).stdout.strip()
+    result = {"frames": frames, "input": args.frames, "runs": args.runs, "events": events, "imported": imported,
               "esim_py": esim_python if have_esim else f"not timed: {esim_python} does not import esim_py"}
     for name in walls:
         result[name] = _summary(frames, walls[name], cpus[name])
