@@ -220,21 +220,18 @@ def linear_candidates(frame, lo_lin, hi_lin, scratch):
     ranked as the float path reports them; nothing is changed.
     """
     n = 0
-    ok = True
-    for i in range(frame.shape[0]):
-        v = frame[i]
-        ok &= (v >= 0) & (v < np.inf)  # False for NaN, a negative value and +inf
-        # branch-free: the write lands at n <= i (inside scratch), and counts only if the pixel passes
-        scratch[n] = i
-        n += (v >= hi_lin[i]) | (v <= lo_lin[i])
-    if ok:
-        return 0, n
-    nan = neg = False  # a bad frame: a second pass ranks its problem
+    nan = False
+    neg = False
+    inf = False
     for i in range(frame.shape[0]):
         v = frame[i]
         nan |= v != v
         neg |= v < 0
-    return (1 if nan else 2 if neg else 1), n
+        inf |= v == np.inf
+        if (v >= hi_lin[i]) | (v <= lo_lin[i]):
+            scratch[n] = i
+            n += 1
+    return (1 if nan else 2 if neg else 1 if inf else 0), n
 
 
 @numba.njit(cache=True, nogil=True)
