@@ -92,11 +92,16 @@ def workers(client) -> list[str]:
     return list(client.scheduler_info(n_workers=-1)["workers"])
 
 
+def host_of(address: str) -> str:
+    """The machine part of a worker address: the address without its port."""
+    return address.rpartition(":")[0]
+
+
 def host_workers(client) -> dict[str, int]:
-    """{host: number of workers on it} (host = the address without its port)."""
+    """{host: number of workers on it} (host_of each worker's address)."""
     counts: dict[str, int] = {}
     for address in workers(client):
-        host = address.rpartition(":")[0]
+        host = host_of(address)
         counts[host] = counts.get(host, 0) + 1
     return counts
 

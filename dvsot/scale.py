@@ -3,8 +3,9 @@
 Each scene is rendered by `render_task` in a worker process, one at a time per process (Blender is
 process-global), with `render.threads` (when the scene leaves it at 0, all cores) set to the worker's
 share of its machine's cores; with several workers on a machine each process is bound to its share
-(warm_up), since Blender's idle threads would otherwise spin on the others' CPUs. Every worker first renders a 16x12 scene (`warm_up`: the bpy import, Cycles'
-first render, the event kernels), so a scene's task time is its own. Results are collected one by one
+(warm_up), since Blender's idle threads would otherwise spin on the others' CPUs. Every worker first
+renders a 16x12 scene (`warm_up`: the bpy import, Cycles' first render, the event kernels), so a scene's
+task time is its own. Results are collected one by one
 (dvsot.cluster.run_tasks): a failure is recorded in the manifest with its one-line error and the scene is
 resubmitted, preferring another worker, up to `retries` times.
 The manifest (JSON: one record per scene with variant, seed, file, drawn values, status, attempts) is
@@ -22,7 +23,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from dvsot.cluster import Cluster, Failure, host_workers, map_tasks, parse_scheduler, run_tasks, worker_address
+from dvsot.cluster import (Cluster, Failure, host_of, host_workers, map_tasks, parse_scheduler, run_tasks,
+                           worker_address)
 from dvsot.errors import exception_line
 from dvsot.outputs import replacing
 
@@ -46,16 +48,26 @@ class SceneTask:
     record: dict = field(default_factory=dict)  # manifest fields known up front (variant, seed, drawn)
 
 
-def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
-    """Render threads for a worker process: this machine's cores shared among the workers on it."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+_BOUND: list[int] = []  # the CPUs warm_up bound this worker process to (empty: not bound)
+
+
+def _this_host() -> str | None:
+    """The machine part of this Dask worker's address, or None outside a worker."""
     try:
         from distributed import get_worker
 
-        host = get_worker().address.rpartition(":")[0]
+        return host_of(get_worker().address)
     except (ImportError, ValueError):
-        return cores
-    return max(1, cores // max(1, host_workers.get(host, 1)))
+        return None
+
+
+def _threads_for_this_worker(host_workers: dict[str, int]) -> int:
+    """Render threads for a worker process: its bound CPUs, else this machine's cores shared among its workers."""
+    if _BOUND:
+        return len(_BOUND)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    host = _this_host()
+    return cores if host is None else max(1, cores // max(1, host_workers.get(host, 1)))
 
 
 def cpu_share(cpus: list[int], slot: int, workers_here: int) -> set[int] | None:
@@ -83,19 +95,15 @@ def _pin_to_share(host_workers: dict[str, int], slot: int) -> list[int] | None:
     sched_yield between tasks, so a worker rendering on one thread also keeps its other CPUs busy, and
     workers on one machine slow each other down: bound to its share, each competes only with itself.
     """
-    if not hasattr(os, "sched_setaffinity") or not os.path.isdir("/proc/self/task"):
-        return None
-    try:
-        from distributed import get_worker
-
-        host = get_worker().address.rpartition(":")[0]
-    except (ImportError, ValueError):
+    host = _this_host()
+    if host is None or not hasattr(os, "sched_setaffinity") or not os.path.isdir("/proc/self/task"):
         return None
     cpus = cpu_share(sorted(os.sched_getaffinity(0)), slot, host_workers.get(host, 1))
     if cpus is None:
         return None
     pin_process(cpus)
-    return sorted(cpus)
+    _BOUND[:] = sorted(cpus)
+    return list(_BOUND)
 
 
 def _real_bpy_first() -> None:
@@ -206,7 +214,7 @@ def warm_workers(client, threads: int = 0, timeout_s: float = 300.0) -> list[dic
 
     hosts, run = host_workers(client), uuid.uuid4().hex[:8]
     addresses = sorted(client.scheduler_info(n_workers=-1)["workers"])
-    slots = {w: sum(1 for v in addresses[:k] if v.rpartition(":")[0] == w.rpartition(":")[0])
+    slots = {w: sum(1 for v in addresses[:k] if host_of(v) == host_of(w))
              for k, w in enumerate(addresses)}  # each worker's index among those on its machine
     futures = [client.submit(warm_up, hosts, threads, slots[w], pure=False, key=f"warm-up-{run}-{k}", workers=[w],
                              allow_other_workers=False)

@@ -52,6 +52,14 @@ def _timed(cmd: list[str], env: dict[str, str] | None = None, cwd: str | None = 
     return wall, cpu, done.stdout
 
 
+def _tree_env(tree: str) -> dict[str, str]:
+    """This environment with the checkout `tree` (if any) first on PYTHONPATH."""
+    env = dict(os.environ)
+    if tree:
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(Path(tree).resolve()), env.get("PYTHONPATH")) if p)
+    return env
+
+
 def _imports_esim(python: str) -> bool:
     return subprocess.run([python, "-c", "import esim_py"], capture_output=True).returncode == 0
 
@@ -89,9 +97,7 @@ def main() -> None:
                 events["esim_py"] = int(n)
             for k, tree in enumerate(trees):
                 name = f"dvsot:{tree}" if tree else "dvsot"
-                env = dict(os.environ)
-                if tree:
-                    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(Path(tree).resolve()), env.get("PYTHONPATH")) if p)
+                env = _tree_env(tree)
                 # run from the temp directory: `python -m` puts the working directory first on sys.path, so
                 # from inside a checkout its dvsot, not the tree's, would be timed
                 wall, cpu, out = _timed([sys.executable, "-m", "dvsot.cli", "simulate", str(Path(args.frames).resolve()),
@@ -102,10 +108,9 @@ def main() -> None:
                 events[name] = json.loads(out.strip().splitlines()[-1])["events"]
     imported = {}  # which dvsot each variant ran: a tree that is not first on the path would time another one
     for tree in trees:
-        env = dict(os.environ, PYTHONPATH=str(Path(tree).resolve())) if tree else None
         with tempfile.TemporaryDirectory() as where:
             imported[f"dvsot:{tree}" if tree else "dvsot"] = subprocess.run(
-                [sys.executable, "-c", "import dvsot; print(dvsot.__file__)"], env=env, cwd=where,
+                [sys.executable, "-c", "import dvsot; print(dvsot.__file__)"], env=_tree_env(tree), cwd=where,
                 capture_output=True, text=True).stdout.strip()
     result = {"frames": frames, "input": args.frames, "runs": args.runs, "events": events, "imported": imported,
               "esim_py": esim_python if have_esim else f"not timed: {esim_python} does not import esim_py"}
