@@ -82,7 +82,10 @@ def main(argv: list[str] | None = None) -> int:
         _close_progress_bars()
         print(f"dvsot {args.command}: failed: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as exc:
+    except (KeyboardInterrupt, SystemError) as caught:
+        exc = interrupts.interruption(caught)
+        if exc is None:  # a SystemError of its own
+            raise
         _close_progress_bars()  # else each redraws itself at exit, under the message
         why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
         print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)

@@ -30,6 +30,21 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
+def interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt behind an exception, if any: itself, or one its causes and contexts chain back to.
+
+    A signal handled while compiled code calls back into Python (numba's dispatcher unpickling a constant)
+    comes out of that call as a SystemError whose cause is the Interrupted: still an interrupt.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 _state = {"depth": 0, "pending": None, "parent": None}
 
 

@@ -340,3 +340,31 @@ def test_keep_frames_never_mixes_runs(tmp_path):
     (keep / "notes.txt").write_text("mine")  # a directory with other files is refused, not replaced
     r = run("generate", QUICKSTART, *TINY_RENDER, "-o", tmp_path / "x.h5", "--keep-frames", keep)
     assert r.returncode == 2 and "not kept frames" in r.stderr and (keep / "notes.txt").exists()
+
+
+def test_a_signal_inside_compiled_code_is_still_one_interrupted_line(monkeypatch, capsys, tmp_path):
+    # numba's dispatcher calls back into Python; a signal handled there comes out as a SystemError caused by it
+    import signal
+
+    from dvsot import cli, interrupts
+
+    def stopped(args):
+        try:
+            raise interrupts.Interrupted(signal.SIGINT)
+        except interrupts.Interrupted as exc:
+            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception set") from exc
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    args = parser.parse_args(["simulate", str(tmp_path), "-o", str(tmp_path / "x.h5")])
+    monkeypatch.setattr(parser, "parse_args", lambda argv=None: args)
+    monkeypatch.setattr(args, "_run", stopped)
+    assert cli.main([]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == ["dvsot simulate: interrupted (SIGINT)"]
+
+    def broken(args):
+        raise SystemError("a SystemError of its own")
+
+    monkeypatch.setattr(args, "_run", broken)
+    with pytest.raises(SystemError, match="of its own"):
+        cli.main([])
