@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 from typing import Iterator
@@ -45,13 +46,16 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
-_state = {"depth": 0, "pending": None, "parent": None}
+_state = {"depth": 0, "pending": None, "parent": None, "raised": None}
 
 
 def _handler(signum: int, frame) -> None:
     if _state["depth"]:
         _state["pending"] = _state["pending"] or signum  # the first one wins; raised at check() or the block's end
         return
+    # kept too: raised inside a weakref callback or a __del__, the exception is printed and dropped, and the
+    # run would go on to replace its outputs; check() (before every commit) raises it again
+    _state["raised"] = _state["raised"] or signum
     raise Interrupted(signum)
 
 
@@ -59,16 +63,30 @@ def install() -> list:
     """Make SIGINT and SIGTERM raise `Interrupted` (main thread only); the previous handlers, for `restore`."""
     if threading.current_thread() is not threading.main_thread():
         return []
+    _state["raised"] = None  # a new run: an earlier one's interrupt was its own
     saved = [(s, signal.getsignal(s)) for s in SIGNALS]
     for s in SIGNALS:
         signal.signal(s, _handler)
+    saved.append(("unraisable", sys.unraisablehook))
+    sys.unraisablehook = _unraisable
     return saved
+
+
+def _unraisable(info) -> None:
+    """sys.unraisablehook: an Interrupted dropped in a callback is kept for check(), not printed; others as before."""
+    if isinstance(info.exc_value, Interrupted):
+        return
+    sys.__unraisablehook__(info)
 
 
 def restore(saved: list) -> None:
     """Put back the handlers `install` replaced."""
     for s, h in saved:
-        signal.signal(s, h if h is not None else signal.SIG_DFL)
+        if s == "unraisable":
+            sys.unraisablehook = h
+        else:
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+    _state["raised"] = None
 
 
 def set_parent(pid: int) -> None:
@@ -82,10 +100,11 @@ def parent_gone() -> bool:
 
 
 def check() -> None:
-    """Raise `Interrupted` if a signal arrived during a deferred block, or this worker's parent died."""
-    pending = _state["pending"]
+    """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, or this
+    worker's parent died."""
+    pending = _state["pending"] or _state["raised"]
     if pending:
-        _state["pending"] = None
+        _state["pending"] = _state["raised"] = None
         raise Interrupted(pending)
     if parent_gone():
         raise Interrupted(signal.SIGTERM, "parent process died")

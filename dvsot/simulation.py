@@ -32,8 +32,11 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
                     source: str = "frames", progress: Callable[[int, int], None] | None = None,
                     is_log: bool = False) -> SimulationCounts:
     """Step sim through frames at t_us (microseconds) and append every event to writer; progress(frame, events)."""
+    from dvsot import interrupts
+
     n_pos, n = 0, 0
     for i, frame in enumerate(frames):
+        interrupts.check()  # a signal whose exception a callback swallowed stops the run here
         if i >= len(t_us):
             raise UserError(f"{source}: more frames than the {len(t_us)} timestamps")
         try:

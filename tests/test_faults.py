@@ -368,3 +368,29 @@ def test_a_signal_inside_compiled_code_is_still_one_interrupted_line(monkeypatch
     monkeypatch.setattr(args, "_run", broken)
     with pytest.raises(SystemError, match="of its own"):
         cli.main([])
+
+
+def test_an_interrupt_swallowed_by_a_callback_is_raised_at_the_next_check(capsys):
+    # Python drops (and prints) an exception raised in a weakref callback or __del__: the signal must not be lost
+    import gc
+    import weakref
+
+    from dvsot import interrupts
+
+    class Thing:
+        pass
+
+    saved = interrupts.install()
+    try:
+        thing = Thing()
+        ref = weakref.ref(thing, lambda r: interrupts._handler(signal.SIGTERM, None))
+        del thing
+        gc.collect()
+        assert ref() is None
+        with pytest.raises(interrupts.Interrupted) as caught:
+            interrupts.check()
+        assert caught.value.exit_status == 143
+        interrupts.check()  # raised once
+    finally:
+        interrupts.restore(saved)
+    assert "Interrupted" not in capsys.readouterr().err
