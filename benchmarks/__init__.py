@@ -5,32 +5,32 @@ Public names (each imported on first use): `benchmark` (trackers x dataset files
 metrics (`scores`, `pooled`, `ar_score`, `Scores`), `summarise` (results -> a typed `Summary` of `Cell`s,
 the tables' data; `summarise_ope` for one-pass runs), `write_report` (a run's tables,
 per-sequence files, pictures and manifest, written together; Table 3 from
-`benchmarks.energy_table.energy_table`), `find_sequences` (the files to run on) and
+`benchmarks.analysis.energy_table.energy_table`), `find_sequences` (the files to run on) and
 `load_sctn_checkpoint`.
 """
 
 from dvsot.lazy import lazy_attributes
 
 _API = {
-    "benchmark": "benchmarks.runner",
-    "run_one": "benchmarks.runner",
-    "SequenceResult": "benchmarks.protocol",
-    "run_sequence": "benchmarks.protocol",
+    "benchmark": "benchmarks.evaluation.runner",
+    "run_one": "benchmarks.evaluation.runner",
+    "SequenceResult": "benchmarks.evaluation.protocol",
+    "run_sequence": "benchmarks.evaluation.protocol",
     "get_tracker": "benchmarks.trackers",
     "register": "benchmarks.trackers",
     "available_trackers": "benchmarks.trackers",
     "Tracker": "benchmarks.trackers.base",
-    "scores": "benchmarks.metrics",
-    "pooled": "benchmarks.metrics",
-    "ar_score": "benchmarks.metrics",
-    "Scores": "benchmarks.metrics",
-    "summarise": "benchmarks.tables",
-    "Summary": "benchmarks.tables",
-    "Cell": "benchmarks.tables",
-    "summarise_ope": "benchmarks.ope",
-    "write_report": "benchmarks.report",
-    "find_sequences": "benchmarks.runner",
-    "load_sctn_checkpoint": "benchmarks.models",
+    "scores": "benchmarks.evaluation.metrics",
+    "pooled": "benchmarks.evaluation.metrics",
+    "ar_score": "benchmarks.evaluation.metrics",
+    "Scores": "benchmarks.evaluation.metrics",
+    "summarise": "benchmarks.analysis.tables",
+    "Summary": "benchmarks.analysis.tables",
+    "Cell": "benchmarks.analysis.tables",
+    "summarise_ope": "benchmarks.evaluation.ope",
+    "write_report": "benchmarks.analysis.report",
+    "find_sequences": "benchmarks.evaluation.runner",
+    "load_sctn_checkpoint": "benchmarks.evaluation.models",
 }
 __all__ = list(_API)
 __getattr__, __dir__ = lazy_attributes(__name__, _API)

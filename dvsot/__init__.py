@@ -11,19 +11,19 @@ from dvsot.lazy import lazy_attributes
 __version__ = "0.1.0"
 
 _API = {
-    "load_scene": "dvsot.config",
-    "SceneConfig": "dvsot.config",
+    "load_scene": "dvsot.scene",
+    "SceneConfig": "dvsot.scene",
     "generate": "dvsot.generate",
-    "simulate_frames": "dvsot.simulation",
-    "write_sequence": "dvsot.simulation",
-    "simulate_file": "dvsot.framesim",
+    "simulate_frames": "dvsot.pipeline.sequence",
+    "write_sequence": "dvsot.pipeline.sequence",
+    "simulate_file": "dvsot.pipeline.simulate",
     "EventSimulator": "dvsot.events",
     "EventParams": "dvsot.events",
     "EventBatch": "dvsot.events",
     "Dataset": "dvsot.dataset",
     "DatasetWriter": "dvsot.dataset",
     "find_datasets": "dvsot.dataset",
-    "dataset_info": "dvsot.info",
+    "dataset_info": "dvsot.dataset.info",
     "UserError": "dvsot.errors",
     "RunError": "dvsot.errors",
 }

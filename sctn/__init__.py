@@ -13,7 +13,7 @@ _API = {
     "SCTNTracker": "sctn.tracker",
     "SCTNParams": "sctn.params",
     "train": "sctn.train",
-    "TrainConfig": "sctn.train",
+    "TrainConfig": "sctn.training.snn",
     "finetune": "sctn.finetune",
     "load_checkpoint": "sctn.checkpoint",
     "save_checkpoint": "sctn.checkpoint",

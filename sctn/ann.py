@@ -14,7 +14,7 @@ instead of C-LIF neurons; the two output units (0 = background, 1 = target) have
 
 The output is returned as a one-step "voltage" trace (B, 1, 2): the code written for SCTN, which takes
 each output's maximum over time (the eq. 5-6 loss of sctn/loss.py, training and fine-tuning of
-sctn/train.py, candidate scoring of sctn/tracker.py), runs the twin unchanged, with the target unit's
+sctn/training/snn.py, candidate scoring of sctn/tracker.py), runs the twin unchanged, with the target unit's
 output standing for V_max. So its loss mirrors eq. 5-6 on its output: it should reach theta + R_s on
 positives and stay below theta - 0.3 on negatives.
 """
@@ -158,9 +158,9 @@ def twin_macs(model: SCTNTwin) -> dict:
 
 
 def train_twin(files: list[Path], cfg, progress: bool = True) -> tuple[SCTNTwin, dict]:
-    """Train a new twin exactly as sctn.train.train trains SCTN (same segments, samples, loss, optimiser, budget);
-    cfg is a sctn.train.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins")."""
-    from sctn.train import train
+    """Train a new twin exactly as sctn.training.snn.train trains SCTN (same segments, samples, loss, optimiser, budget);
+    cfg is a sctn.training.snn.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins")."""
+    from sctn.training.snn import train
 
     if cfg.ops_penalty > 0:
         raise ValueError("the ANN twin has no spikes to penalise: ops_penalty must be 0")

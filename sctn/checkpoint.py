@@ -11,8 +11,8 @@ from typing import Callable
 import torch
 
 from dvsot.errors import UserError, exception_line
-from dvsot.outputs import replacing, run_outputs
-from dvsot.validate import file_kind_problem
+from dvsot.runtime.outputs import replacing, run_outputs
+from dvsot.limits import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -46,7 +46,7 @@ def metadata_path(path: str | os.PathLike) -> Path:
 
 def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", inputs=()) -> Path:
     """`path` as a checkpoint to (re)write, with its .json beside it; UserError before any work if it cannot be."""
-    from dvsot.outputs import output_file
+    from dvsot.runtime.outputs import output_file
 
     p = output_file(path, flag, inputs)
     meta = metadata_path(p)
@@ -66,7 +66,7 @@ def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: dict,
     p = check_checkpoint_output(path)
     meta_path = metadata_path(p)
     state = {k: v.detach().to(torch.float32).clone() for k, v in model.state_dict().items()}
-    with run_outputs() as run:  # renamed together when both are complete (dvsot.outputs)
+    with run_outputs() as run:  # renamed together when both are complete (dvsot.runtime.outputs)
         meta = {**meta, "run": run.run_id}
         with replacing(p) as tmp, open(tmp, "wb") as f:  # a file object: a full disk is an OSError, not torch's
             torch.save({"format": f"{kind}-checkpoint", "version": 1, "config": model.cfg.model_dump(),

@@ -52,7 +52,7 @@ def encode_boxes(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, cfg: Ne
 def box_canvas(boxes_xywh: np.ndarray, size: int = 107) -> np.ndarray:
     """Per box (N, 7) float32: left, right, top, bottom edge and centre x, y (pixels), canvas scale (canvas px
     per px). An event (pixel centre ex, ey) is inside when left <= ex < right and top <= ey < bottom, and lands
-    on canvas pixel floor((ex - centre) * scale + size / 2); every step rounds to float32 (sctn.sparse_eval
+    on canvas pixel floor((ex - centre) * scale + size / 2); every step rounds to float32 (sctn.sparse.evaluate
     repeats this arithmetic)."""
     boxes = np.asarray(boxes_xywh, np.float32).reshape(-1, 4)
     scale = np.minimum(np.float32(1.0), np.float32(size) / np.maximum(boxes[:, 2], boxes[:, 3]))

@@ -62,9 +62,9 @@ def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
 
 def candidate_ops(model: SCTN, events, t0_us: int, boxes_xywh, batch: int = 64) -> float:
     """AC operations of evaluating each candidate box on its own masked input (the paper's tracking), summed over the
-    boxes: event-driven (sctn.sparse_eval) where that is exact, else densely from forward_record."""
+    boxes: event-driven (sctn.sparse.evaluate) where that is exact, else densely from forward_record."""
     from sctn.encoding import encode_boxes
-    from sctn.sparse_eval import candidate_record, exact_blocker
+    from sctn.sparse.evaluate import candidate_record, exact_blocker
 
     if exact_blocker(model) is None:
         _, rec = candidate_record(model, events, t0_us, boxes_xywh)

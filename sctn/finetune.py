@@ -1,6 +1,6 @@
 """Fine-tuning SCTN in place on one segment (paper Algorithm 1, steps 1-2): what the tracker runs at a sequence's start.
 
-Kept apart from sctn/train.py so that inference (sctn/tracker.py) does not depend on the training loop.
+Kept apart from sctn/training/snn.py so that inference (sctn/tracker.py) does not depend on the training loop.
 """
 
 from __future__ import annotations

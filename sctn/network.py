@@ -24,7 +24,7 @@ from torch import nn
 
 from sctn.neurons import ALPHA_M, ALPHA_S, CLIF
 from sctn.params import CROPS
-from sctn.spike_sums import mix_corners, window_sums
+from sctn.sparse.spike_sums import mix_corners, window_sums
 
 
 class NetworkConfig(BaseModel):

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dvsot.boxes import iou_xywh
+from dvsot.dataset.boxes import iou_xywh
 
 MIN_SIZE = 4.0
 

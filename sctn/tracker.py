@@ -35,7 +35,7 @@ from sctn.finetune import finetune
 from sctn.network import SCTN
 from sctn.params import SCTNParams
 from sctn.samples import TRACK, propose
-from sctn.sparse_eval import per_candidate_voltages
+from sctn.sparse.evaluate import per_candidate_voltages
 
 
 def location_rng(seed: int, box_xywh: np.ndarray) -> np.random.Generator:

@@ -3,8 +3,8 @@
     python -m benchmarks.perf.bench_exchange [--events 10000000]
 
 A dataset file of random events (640x480, 10 s, one box track) is written to a temporary directory,
-then for each format `dvsot.exchange.export_dataset` (dataset file -> OUT + OUT.boxes.csv) and
-`dvsot.recordings.import_recording` (OUT -> a new dataset file) are timed once each, wall clock and
+then for each format `dvsot.interop.event_files.export_dataset` (dataset file -> OUT + OUT.boxes.csv) and
+`dvsot.interop.recordings.import_recording` (OUT -> a new dataset file) are timed once each, wall clock and
 CPU time of the process (all its threads; on a loaded machine the CPU time is the steadier figure),
 including reading and writing the files. Each exported file is deleted before the next.
 """
@@ -20,8 +20,8 @@ import numpy as np
 
 from dvsot.dataset import DatasetWriter
 from dvsot.events import EventBatch
-from dvsot.exchange import boxes_path, export_dataset
-from dvsot.recordings import import_recording
+from dvsot.interop.event_files import boxes_path, export_dataset
+from dvsot.interop.recordings import import_recording
 
 W, H = 640, 480
 FORMATS = [("aedat4", "evt3"), ("raw", "evt2"), ("raw", "evt3"), ("dat", "evt3"), ("csv", "evt3"), ("txt", "evt3")]

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _setting(text: str) -> tuple[str, object]:
-    from dvsot.config import yaml_value
+    from dvsot.scene import yaml_value
 
     key, sep, value = text.partition("=")
     if not sep or not key:
@@ -33,8 +33,8 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def main() -> None:
-    from dvsot.config import load_scene
-    from dvsot.generate import generate
+    from dvsot.scene import load_scene
+    from dvsot.pipeline.generate import generate
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", default=str(ROOT / "blender_scenes" / "quickstart.yaml"))

@@ -7,7 +7,7 @@ its synaptic operations; print JSON.
         [--segments 50]
 
 --sequences times, per file on one thread, the paper's per-candidate evaluation twice (the dense path:
-encode_boxes and the whole network per candidate; the event-driven path, sctn/sparse_eval.py, which
+encode_boxes and the whole network per candidate; the event-driven path, sctn/sparse/evaluate.py, which
 SCTNTracker uses when it is exact) and the fast mode, and checks that both per-candidate runs track
 the same boxes. --drop-biases evaluates the checkpoint's weights without its biases and tail steps (a
 stand-in for a paper-preset checkpoint, for timing).
@@ -35,7 +35,7 @@ import torch
 
 def dense_scoring_tracker():
     """SCTNTracker whose per-candidate scores come from the dense path (the code before the event-driven one)."""
-    from sctn.sparse_eval import dense_candidate_voltages
+    from sctn.sparse.evaluate import dense_candidate_voltages
     from sctn.tracker import SCTNTracker
 
     class DenseTracker(SCTNTracker):
@@ -66,7 +66,7 @@ def bias_free(model):
 
 def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "bilinear",
               repeat: int = 1, tracker_cls=None, boxes_out: list | None = None) -> dict:
-    from dvsot.boxes import iou_xywh
+    from dvsot.dataset.boxes import iou_xywh
     from dvsot.dataset import Dataset
     from sctn.tracker import SCTNTracker
 
@@ -104,7 +104,7 @@ def time_ann_trackers(path: Path, segments: int, repeat: int, twin_checkpoint: s
                       siamfc_checkpoint: str | None = None) -> list[dict]:
     """Segments/s of sctn_ann and siamfc on one thread (best of `repeat` runs; init, i.e. fine-tuning, excluded)."""
     from benchmarks.trackers import get_tracker
-    from dvsot.boxes import iou_xywh
+    from dvsot.dataset.boxes import iou_xywh
     from dvsot.dataset import Dataset
 
     torch.set_num_threads(1)
@@ -203,7 +203,7 @@ def main() -> None:
 
 def per_sequence(model, paths: list[Path], segments: int) -> dict:
     """Segments/s on one thread per file: per candidate (dense path, event-driven path) and fast mode."""
-    from sctn.sparse_eval import exact_blocker
+    from sctn.sparse.evaluate import exact_blocker
 
     rows = []
     for fast, cls in ((False, dense_scoring_tracker()), (False, None), (True, None)):  # compile / load numba code
@@ -245,7 +245,7 @@ def segment_ops(model, path: Path, segments: int = 8) -> float | None:
     masked canvas), over `segments` labelled segments spread over the file; None if the model is not exact there."""
     from dvsot.dataset import Dataset
     from sctn.samples import TRACK, propose
-    from sctn.sparse_eval import candidate_record, exact_blocker
+    from sctn.sparse.evaluate import candidate_record, exact_blocker
 
     if exact_blocker(model) is not None:
         return None

@@ -74,7 +74,7 @@ def budget_steps(train_config: dict) -> int:
 def full_training(meta: dict, data_dir: Path, threads: int) -> dict:
     """Train a new network with the checkpoint's recorded train_config on its training files found in data_dir;
     wall and CPU minutes."""
-    from sctn.train import TrainConfig, train
+    from sctn.training.snn import TrainConfig, train
 
     names = [d["name"] for d in meta.get("data", []) if d.get("split", "train") == "train"]
     files = [data_dir / f"{n}.h5" for n in names]
@@ -103,7 +103,7 @@ def main() -> None:
     args = parser.parse_args()
     from dvsot.dataset import Dataset
     from sctn.checkpoint import load_checkpoint
-    from sctn.train import segment_batch, usable_segments
+    from sctn.training.snn import segment_batch, usable_segments
 
     torch.set_num_threads(args.threads)
     model, meta = load_checkpoint(args.checkpoint)

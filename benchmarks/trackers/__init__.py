@@ -28,7 +28,7 @@ from dvsot.errors import UserError
 BUILTIN: dict[str, str] = {
     "sctn": "benchmarks.trackers.sctn",
     "sctn_ann": "benchmarks.trackers.sctn_ann",
-    "siamfc": "benchmarks.siamfc.tracker",
+    "siamfc": "benchmarks.trackers.siamfc.tracker",
     "rct": "benchmarks.trackers.rct",
     "csrt": "benchmarks.trackers.frame_based",
     "kcf": "benchmarks.trackers.frame_based",

@@ -48,7 +48,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.rct_clusters import ClusterSet
-from dvsot.boxes import iou_xywh
+from dvsot.dataset.boxes import iou_xywh
 from dvsot.dataset import Segment
 from dvsot.events import EventBatch
 

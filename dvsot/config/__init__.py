@@ -1,13 +1,3 @@
-"""The scene file: its schema (dvsot.config.schema, pydantic) and its loader (dvsot.config.loader: YAML, overrides,
-whole-scene checks, asset files); the names callers use are re-exported here."""
+"""Re-exports dvsot.scene, where this module lives now; this old import path goes in the next release."""
 
-from dvsot.config.loader import (Locate, asset_paths, load_scene, parse_scene, read_scene_text, read_yaml,
-                                 validate_scene, yaml_value)
-from dvsot.config.schema import (Background, Colour, Coord, Extra, Float, Int, Keyframe, Light, Material, Render,
-                                 Sampling, Scale, SceneConfig, SceneObject, Sensor, Shape, Size, Strict, Texture,
-                                 TextureKind, Trajectory, Vec3, World)
-
-__all__ = ["Background", "Colour", "Coord", "Extra", "Float", "Int", "Keyframe", "Light", "Locate", "Material",
-           "Render", "Sampling", "Scale", "SceneConfig", "SceneObject", "Sensor", "Shape", "Size", "Strict", "Texture",
-           "TextureKind", "Trajectory", "Vec3", "World", "asset_paths", "load_scene", "parse_scene",
-           "read_scene_text", "read_yaml", "validate_scene", "yaml_value"]
+from dvsot.scene import *  # noqa: F401,F403

@@ -1,6 +1,6 @@
 """The dvsot dataset file (HDF5, format version 2): its layout, constants and attribute encoding.
 
-The writer is dvsot.dataset.writer, the reader dvsot.dataset.reader, the reader's checks dvsot.dataset.validation.
+The writer is dvsot.dataset.writer, the reader dvsot.dataset.reader, the reader's checks dvsot.dataset.checks.
 
 Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
 
@@ -22,7 +22,7 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
 
 Event columns are byte-shuffled and gzip (level 1) compressed, filters every HDF5 library has, so
 h5dump and readers outside h5py open them
-(the writer encodes those chunks itself, with ISA-L's deflate: dvsot.h5chunks). Version 1 files (LZF, no root link, no /t_offset) still load, with offset 0.
+(the writer encodes those chunks itself, with ISA-L's deflate: dvsot.dataset.h5chunks). Version 1 files (LZF, no root link, no /t_offset) still load, with offset 0.
 
 The writer appends events in chunks and computes `ms_to_idx` as it goes, so a sequence of hundreds
 of millions of events never sits in memory. It writes to a temporary name beside the target and
@@ -34,11 +34,11 @@ of events it loads (time order, time window, pixel range, 0/1 flags) on the data
 `Dataset.chunks` streams and checks the whole file. Any violation is a one-line UserError naming the
 file and the dataset or attribute. Files written before checksums were added still load.
 
-Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.validate),
+Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.limits),
 and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
 `attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
 digest (no `attrs_sha256`) load without that check. Whole datasets read into memory are bounded in
-rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
+rows (dvsot.limits), so a damaged or hostile file cannot make the reader allocate gigabytes.
 """
 
 from __future__ import annotations

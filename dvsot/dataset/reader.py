@@ -1,5 +1,5 @@
 """The dataset file's lazy reader: events by time through ms_to_idx, fixed-length segments with their ground
-truth, boxes and attributes, every load checked (dvsot.dataset.validation); and finding the files of a split."""
+truth, boxes and attributes, every load checked (dvsot.dataset.checks); and finding the files of a split."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any, Iterator
 import h5py
 import numpy as np
 
-from dvsot import validate
+from dvsot import limits as validate
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
-from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
+from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
                                       columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
 from dvsot.events import EventBatch
@@ -83,7 +83,7 @@ class Dataset:
         vis = self._load("segments/xywh_visible") if "segments/xywh_visible" in f else None
         self._seg_vis = None if vis is None else vis.astype(np.float32)
         self.num_segments = int(self._seg_box.shape[0])
-        # recordings: the /boxes row each segment is scored against (-1: none), dvsot.boxes.match_annotations
+        # recordings: the /boxes row each segment is scored against (-1: none), dvsot.dataset.boxes.match_annotations
         self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
         n_boxes = f["boxes/t"].shape[0]
         if self._seg_ann is not None and len(self._seg_ann) and not (

@@ -10,15 +10,15 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dvsot import validate
-from dvsot.background import OrderedWorker
-from dvsot.boxes import interpolate_boxes, match_annotations
+from dvsot import limits as validate
+from dvsot.runtime.threads import OrderedWorker
+from dvsot.dataset.boxes import interpolate_boxes, match_annotations
 from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
 from dvsot.events import EventBatch
-from dvsot.h5chunks import encode_chunk
+from dvsot.dataset.h5chunks import encode_chunk
 
 _EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
 
@@ -46,7 +46,7 @@ class DatasetWriter:
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
-        from dvsot.outputs import RunOutputs, current_run
+        from dvsot.runtime.outputs import RunOutputs, current_run
 
         # staged beside the target (host, pid and a random token in its name); renamed at close, or with the
         # other outputs of the enclosing run_outputs() block
@@ -59,7 +59,7 @@ class DatasetWriter:
         self._filter = COMPRESSIONS[compression]
         self.t_offset_us = int(t_offset_us)  # the recording's clock minus /events/t, microseconds
         # annotated: boxes are annotations at their own times (a recording), scored only where one matches a
-        # segment (dvsot.boxes.match_annotations), never interpolated; else a rendered track, interpolated
+        # segment (dvsot.dataset.boxes.match_annotations), never interpolated; else a rendered track, interpolated
         self.annotated = bool(annotated)
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
@@ -97,7 +97,7 @@ class DatasetWriter:
             self.close()
         elif exc_type is not None:
             self.abort()
-            from dvsot.outputs import disk_error
+            from dvsot.runtime.outputs import disk_error
 
             reason = disk_error(exc)
             if reason is not None:  # a full disk: one line naming the output, not h5py's traceback
@@ -157,7 +157,7 @@ class DatasetWriter:
     def _flush(self, final: bool = False) -> None:
         """Hand the buffered events to the writer thread in whole chunks (all if final); the rest stays buffered.
 
-        Whole chunks let the gzip columns go to the file as chunks encoded outside HDF5 (dvsot.h5chunks),
+        Whole chunks let the gzip columns go to the file as chunks encoded outside HDF5 (dvsot.dataset.h5chunks),
         and their compression overlaps with the caller's work.
         """
         if not self._buffer:
@@ -184,7 +184,7 @@ class DatasetWriter:
     def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
         """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close).
 
-        n0 is a multiple of the chunk length; gzip columns are written as chunks encoded by dvsot.h5chunks
+        n0 is a multiple of the chunk length; gzip columns are written as chunks encoded by dvsot.dataset.h5chunks
         (the filters HDF5 would apply, with a faster deflate), the other compressions through HDF5's filters.
         """
         ev = self._file["events"]
@@ -301,7 +301,7 @@ class DatasetWriter:
             _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)
             self._run.done(self.path)
             if self._own_run is not None:
-                from dvsot.outputs import writing
+                from dvsot.runtime.outputs import writing
 
                 with writing(self.path):
                     self._own_run.commit()

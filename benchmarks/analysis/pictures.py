@@ -1,0 +1,82 @@
+"""Pictures of a benchmark run: IoU over time per sequence and tracker.
+
+`plot_iou_over_time` takes the simplest form of the per-segment results: {tracker: {sequence: IoU
+array}}, one value per segment, NaN for segments that do not count (initialisation segments, segments
+without ground truth). Tracking videos (event frames with the
+ground-truth and predicted boxes) are `dvsot.dataset.preview.write_preview`, which `dvsot bench --video` calls.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from benchmarks.evaluation.metrics import FAILURE_IOU  # the protocol's failure threshold, drawn as a reference line
+from dvsot.dataset.safe_names import plot_text  # sequence and tracker names are free text: no mathtext, one line
+from dvsot.defaults import SEGMENT_US
+
+
+def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png: str | os.PathLike,
+                       segment_ms: float = SEGMENT_US / 1000, sequences: list[str] | None = None,
+                       title: str | None = None) -> Path:
+    """Write a PNG with one panel per sequence: IoU per segment (time in s) for each tracker; returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    trackers = list(results)
+    if sequences is None:
+        sequences = []
+        for per_seq in results.values():
+            sequences.extend(name for name in per_seq if name not in sequences)
+    if not trackers or not sequences:
+        raise ValueError("plot_iou_over_time: no trackers or no sequences to plot")
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(len(sequences), 1, figsize=(10, 2.2 * len(sequences) + 0.6), squeeze=False,
+                             sharex=False)
+    colors = plt.get_cmap("tab10")
+    for row, seq in enumerate(sequences):
+        ax = axes[row, 0]
+        for k, name in enumerate(trackers):
+            iou = results[name].get(seq)
+            if iou is None:
+                continue
+            iou = np.asarray(iou, dtype=float).reshape(-1)
+            t_s = (np.arange(len(iou)) + 1) * segment_ms / 1000.0   # a segment's IoU belongs to its end time
+            counted = np.isfinite(iou)
+            mean = float(np.mean(iou[counted])) if counted.any() else float("nan")
+            # NaN breaks the line, so uncounted segments show as gaps
+            ax.plot(t_s, iou, lw=1.0, color=colors(k % 10), label=f"{plot_text(name)} (mean {mean:.3f})")
+            fails = counted & (iou < FAILURE_IOU)
+            ax.plot(t_s[fails], iou[fails], "x", ms=3, color=colors(k % 10))
+        ax.axhline(FAILURE_IOU, color="grey", lw=0.8, ls="--")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_ylabel("IoU")
+        ax.set_title(plot_text(seq), fontsize=10, loc="left")
+        ax.legend(fontsize=8, loc="lower right", ncol=min(4, len(trackers)))
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time (s); x = failure (IoU < 0.5), gaps = segments that do not count")
+    if title:
+        fig.suptitle(plot_text(title))
+    fig.tight_layout()
+    save_figure(fig, out, dpi=110)
+    return out
+
+
+def save_figure(fig, out_png: str | os.PathLike, dpi: int) -> Path:
+    """Save a figure as PNG via a temp file and a rename (a picture is never half-written); closes the figure."""
+    import matplotlib.pyplot as plt
+
+    from dvsot.runtime.outputs import replacing
+
+    try:
+        with replacing(out_png) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    return Path(out_png)

@@ -1,0 +1,92 @@
+"""Per-sequence result files other toolkits read: OTB/pytracking boxes, VOT trajectories, per-segment times.
+
+For every tracker and sequence of a run, in `<out>/<tracker>/` (names made safe as file names):
+
+- `<sequence>.txt`: one `x,y,w,h` line per segment (pixels, top-left corner), OTB / GOT-10k /
+  pytracking style; the ground truth at initialisation segments, `nan,nan,nan,nan` where the tracker
+  was not asked (segments skipped for want of ground truth).
+- `times/<sequence>_time.txt`: one line per segment, the seconds the tracker spent on it (init or
+  update), `nan` where it was not asked (where got10k's ExperimentOTB looks for per-frame times).
+- `baseline/<sequence>/<sequence>_001.txt` (re-initialising protocol only): the VOT toolkit's
+  trajectory, one line per segment: `1` where the tracker was initialised, `2` where it failed
+  (IoU < 0.5; re-initialised on the next segment), `0` where it was not asked, else `x,y,w,h`.
+- `timing.csv`: per sequence, segments asked, initialisations, init and update seconds, segments/s.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.evaluation.metrics import FAILURE_IOU
+from benchmarks.evaluation.protocol import SequenceResult
+from benchmarks.analysis.tables import write_text_atomic
+from dvsot.dataset.safe_names import file_stem
+
+
+def _box(row: np.ndarray) -> str:
+    return ",".join(f"{v:.3f}" if np.isfinite(v) else "nan" for v in row)
+
+
+def otb_text(result: SequenceResult) -> str:
+    """One x,y,w,h line per segment: the prediction, the given box at an initialisation, nan where not asked."""
+    return "".join(_box(row) + "\n" for row in result.predictions)
+
+
+def vot_text(result: SequenceResult) -> str:
+    """The VOT trajectory: 1 at an initialisation, 2 at a failure, 0 where not asked, else the box."""
+    inits = set(result.init_segments)
+    lines = []
+    for i, row in enumerate(result.predictions):
+        if i in inits:
+            lines.append("1")
+        elif np.isfinite(result.iou[i]) and result.iou[i] < FAILURE_IOU:
+            lines.append("2")
+        elif np.isfinite(row).all():
+            lines.append(_box(row))
+        else:
+            lines.append("0")
+    return "\n".join(lines) + "\n"
+
+
+def time_text(result: SequenceResult) -> str:
+    """One line of tracker seconds per segment (nan where not asked)."""
+    seconds = result.segment_seconds if result.segment_seconds is not None else np.full(len(result.iou), np.nan)
+    return "".join((f"{s:.6f}" if np.isfinite(s) else "nan") + "\n" for s in seconds)
+
+
+def result_paths(out_dir: Path, tracker: str, sequence: str, vot: bool) -> dict[str, Path]:
+    """The files one tracker's run on one sequence writes, by kind (otb, time, vot)."""
+    d, s = Path(out_dir) / file_stem(tracker), file_stem(sequence)
+    paths = {"otb": d / f"{s}.txt", "time": d / "times" / f"{s}_time.txt"}
+    if vot:
+        paths["vot"] = d / "baseline" / s / f"{s}_001.txt"
+    return paths
+
+
+def write_sequence_files(results: list[SequenceResult], out_dir: str | Path, vot: bool = True) -> list[Path]:
+    """Write every finished run's per-sequence files and each tracker's timing.csv (each file atomically)."""
+    out_dir = Path(out_dir)
+    written: list[Path] = []
+    timing: dict[str, list[list]] = {}
+    for r in results:
+        if r.error is not None:  # a crashed run has no trajectory to give; the tables mark it failed
+            continue
+        paths = result_paths(out_dir, r.tracker, r.sequence, vot)
+        texts = {"otb": otb_text(r), "time": time_text(r), "vot": vot_text(r) if vot else ""}
+        for kind, path in paths.items():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            written.append(write_text_atomic(path, texts[kind]))
+        asked = len(r.init_segments) + r.tracked_segments
+        rate = f"{r.segments_per_s:.3f}" if np.isfinite(r.segments_per_s) else "nan"
+        timing.setdefault(r.tracker, [["sequence", "segments_asked", "inits", "init_s", "update_s", "segments_per_s"]]
+                          ).append([r.sequence, asked, len(r.init_segments), f"{r.init_seconds:.6f}",
+                                    f"{r.tracker_seconds:.6f}", rate])
+    for tracker, rows in timing.items():
+        text = io.StringIO()
+        csv.writer(text, lineterminator="\n").writerows(rows)  # quotes a sequence name holding a comma
+        written.append(write_text_atomic(out_dir / file_stem(tracker) / "timing.csv", text.getvalue()))
+    return written

@@ -1,0 +1,149 @@
+"""One-pass evaluation (OPE, as OTB, GOT-10k, FE108 and VisEvent report it): success AUC and precision at 20 px.
+
+The tracker is initialised once, on the first segment with a ground-truth box, and predicts every
+later segment with no re-initialisation (`run_sequence(..., reinitialise=False)`). Every later
+segment with a box counts (for a recording: every later segment matched to an annotation with a
+box); a prediction that is not finite counts as IoU 0 and an infinite centre error.
+
+- Success curve: the fraction of counted segments with IoU > t, for t = 0, 0.05, ..., 1 (21
+  thresholds, OTB's); success AUC is its mean.
+- Precision curve: the fraction with centre distance <= d pixels, d = 0 .. 50; precision is its value
+  at 20 px.
+Per sequence, and over all counted segments of all sequences together ("all"), as A and R are pooled.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.evaluation.metrics import ALL
+from benchmarks.evaluation.protocol import SequenceResult
+from dvsot.dataset.safe_names import markdown_cell  # sequence and tracker names are free text
+
+IOU_THRESHOLDS = np.linspace(0.0, 1.0, 21)
+PIXEL_THRESHOLDS = np.arange(0, 51, dtype=np.float64)
+PRECISION_PX = 20
+
+
+def centre_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Distance (pixels) between box centres, per row of (N, 4) xywh arrays; inf where the prediction is not finite."""
+    p, g = np.asarray(pred, np.float64).reshape(-1, 4), np.asarray(gt, np.float64).reshape(-1, 4)
+    d = np.hypot(p[:, 0] + p[:, 2] / 2 - g[:, 0] - g[:, 2] / 2, p[:, 1] + p[:, 3] / 2 - g[:, 1] - g[:, 3] / 2)
+    return np.where(np.isfinite(p).all(axis=1), d, np.inf)
+
+
+def success_curve(ious: np.ndarray) -> np.ndarray:
+    """Fraction of IoUs above each of IOU_THRESHOLDS (NaN entries are segments that do not count)."""
+    v = np.asarray(ious, np.float64)
+    v = v[~np.isnan(v)]
+    if v.size == 0:
+        return np.full(len(IOU_THRESHOLDS), np.nan)
+    return (v[None, :] > IOU_THRESHOLDS[:, None]).mean(axis=1)
+
+
+def precision_curve(errors: np.ndarray) -> np.ndarray:
+    """Fraction of centre errors (pixels) at or below each of PIXEL_THRESHOLDS (NaN entries do not count)."""
+    v = np.asarray(errors, np.float64)
+    v = v[~np.isnan(v)]
+    if v.size == 0:
+        return np.full(len(PIXEL_THRESHOLDS), np.nan)
+    return (v[None, :] <= PIXEL_THRESHOLDS[:, None]).mean(axis=1)
+
+
+def add_centre_errors(result: SequenceResult, gt: np.ndarray) -> SequenceResult:
+    """Store the counted segments' centre errors (pixels, NaN elsewhere) in result.extra['centre_error']."""
+    err = np.full(len(result.iou), np.nan)
+    counted = ~np.isnan(result.iou)
+    err[counted] = centre_errors(result.predictions[counted], gt[: len(result.iou)][counted])
+    result.extra["centre_error"] = err
+    return result
+
+
+def _scores(ious: np.ndarray, errors: np.ndarray) -> dict:
+    s, p = success_curve(ious), precision_curve(errors)
+    return {"AUC": float(np.mean(s)), f"P@{PRECISION_PX}": float(p[PRECISION_PX]),
+            "segments": int(np.count_nonzero(~np.isnan(np.asarray(ious, np.float64)))),
+            "success": s.tolist(), "precision": p.tolist()}
+
+
+def summarise_ope(results: list[SequenceResult]) -> dict:
+    """{tracker: {sequence or 'all': AUC, P@20, segments, the two curves}} of finished runs (failed ones: error)."""
+    out: dict = {}
+    for r in results:
+        per = out.setdefault(r.tracker, {})
+        per[r.sequence] = {"error": r.error} if r.error else _scores(r.iou, r.extra["centre_error"])
+    for tracker, per in out.items():
+        ok = [r for r in results if r.tracker == tracker and r.error is None]
+        if ok:
+            per[ALL] = _scores(np.concatenate([r.iou for r in ok]),
+                               np.concatenate([r.extra["centre_error"] for r in ok]))
+    return out
+
+
+def format_ope(summary: dict) -> str:
+    """A Markdown table: success AUC / precision at 20 px per tracker and sequence, then 'all'."""
+    sequences: list[str] = []
+    for per in summary.values():
+        sequences.extend(s for s in per if s != ALL and s not in sequences)
+    head = "| tracker | " + " | ".join(map(markdown_cell, sequences)) + f" | {ALL} (AUC / P@{PRECISION_PX}) |"
+    lines = [head, "|---" * (len(sequences) + 2) + "|"]
+    for tracker, per in summary.items():
+        cells = []
+        for seq in sequences + [ALL]:
+            v = per.get(seq)
+            if v is None:
+                cells.append("")
+            elif "error" in v:
+                cells.append("failed")
+            else:
+                cells.append(f"{v['AUC']:.3f} / {v[f'P@{PRECISION_PX}']:.3f}")
+        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def plot_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
+    """success_plot.png and precision_plot.png of every tracker's 'all' curves, written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dvsot.dataset.safe_names import plot_text
+    from dvsot.runtime.outputs import replacing
+
+    written = []
+    for name, xs, key, score, xlabel in (
+            ("success_plot.png", IOU_THRESHOLDS, "success", "AUC", "overlap threshold (IoU)"),
+            ("precision_plot.png", PIXEL_THRESHOLDS, "precision", f"P@{PRECISION_PX}", "location error threshold (px)")):
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for tracker, per in summary.items():
+            if ALL in per:
+                ax.plot(xs, per[ALL][key], label=f"{plot_text(tracker)} [{per[ALL][score]:.3f}]")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("success rate" if key == "success" else "precision")
+        ax.set_ylim(0, 1.02)
+        ax.set_title(f"one-pass evaluation: {key} ({score} in brackets)")
+        ax.legend(loc="lower left" if key == "success" else "lower right", fontsize=8)
+        ax.grid(alpha=0.3)
+        path = Path(out_dir) / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with replacing(path) as tmp:
+            fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def write_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
+    """ope.json (scores and curves), ope.md (the table) and the two plots in out_dir."""
+    from benchmarks.analysis.tables import write_text_atomic
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [write_text_atomic(out / "ope.json", json.dumps(summary, indent=2)),
+             write_text_atomic(out / "ope.md", format_ope(summary) + "\n")]
+    return paths + plot_ope(summary, out)

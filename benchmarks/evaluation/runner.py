@@ -1,0 +1,121 @@
+"""Running trackers on dataset files: one tracker on one file, or every tracker on every file in worker processes."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Iterable, Sequence
+
+from benchmarks.evaluation.protocol import SequenceResult
+
+PROTOCOLS = ("ar", "ope")  # the paper's A / R with re-initialisation; one pass (OTB-style OPE)
+
+
+def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_segments: int | None = None,
+            options: dict | None = None, protocol: str = "ar") -> SequenceResult:
+    """One tracker on one dataset file; a tracker that fails to build or crashes gives a result with `error` set."""
+    import numpy as np
+
+    from benchmarks.evaluation.protocol import run_sequence
+    from benchmarks.trackers import get_tracker, load_tracker_module
+    from dvsot.dataset import Dataset
+    from dvsot.errors import exception_line
+
+    for m in modules:
+        load_tracker_module(m)
+    with Dataset(path) as ds:
+        try:
+            instance = get_tracker(tracker, **(options or {}))
+        except Exception as exc:  # a runtime failure: benchmark() built each tracker's class up front
+            n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
+            return SequenceResult(tracker, ds.name, np.full(n, np.nan), np.full((n, 4), np.nan), [], 0.0, 0,
+                                  error=exception_line(exc))
+        if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
+            sys.modules["torch"].set_num_threads(1)
+        result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
+        if protocol == "ope":
+            from benchmarks.evaluation.ope import add_centre_errors
+
+            add_centre_errors(result, ds.segment_boxes())
+        return result
+
+
+def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None = None) -> dict[str, Path]:
+    """{sequence name: dataset file} of the files, directories or globs (split None: any); each must hold
+    ground truth and a name of its own (they name the tables' columns)."""
+    import numpy as np
+
+    from dvsot.dataset import Dataset, find_datasets
+    from dvsot.errors import UserError
+
+    out: dict[str, Path] = {}
+    for f in find_datasets(specs, split=split):
+        with Dataset(f) as ds:
+            if ds.num_segments == 0 or np.isnan(ds.segment_boxes()).any(axis=1).all():
+                raise UserError(f"{f}: sequence has no ground-truth boxes to track")
+            if ds.name in out:  # two files with one name would share (and overwrite) a table column
+                raise UserError(f"{f}: sequence '{ds.name}' is also in {out[ds.name]}; the tables need distinct names")
+            out[ds.name] = Path(f)
+    return out
+
+
+def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dict[str, dict] | None = None,
+              jobs: int = 1, max_segments: int | None = None, protocol: str = "ar",
+              tracker_modules: Sequence[str] = (), progress: bool = False,
+              scheduler: str | None = None) -> list[SequenceResult]:
+    """Every tracker on every file (tracker by tracker), in `jobs` worker processes; options: {tracker: {key: value}}.
+
+    scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) instead (dvsot.pipeline.scene_runner;
+    the files must be at the same paths on the workers). Unknown trackers, jobs < 1, max_segments < 1, an
+    unknown protocol or a malformed scheduler raise UserError before anything runs; a tracker that crashes
+    on a sequence gives that result an `error` instead of raising.
+    """
+    from concurrent.futures import as_completed
+
+    from tqdm import tqdm
+
+    from benchmarks.trackers import load_tracker_module, tracker_class
+    from dvsot.errors import UserError
+    from dvsot.runtime.worker_pool import WorkerPool, result
+
+    if jobs < 1:
+        raise UserError(f"jobs must be >= 1, got {jobs}")
+    if max_segments is not None and max_segments < 1:
+        raise UserError(f"max_segments must be >= 1, got {max_segments}")
+    if protocol not in PROTOCOLS:
+        raise UserError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+    if scheduler:
+        from dvsot.pipeline.scene_runner import parse_scheduler
+
+        parse_scheduler(scheduler)
+    for m in tracker_modules:
+        load_tracker_module(m)
+    names = list(dict.fromkeys(trackers))
+    for name in names:
+        tracker_class(name)
+    options = options or {}
+    paths = [str(f) for f in files]
+    tasks = [(t, f) for t in names for f in paths]
+    results: list = [None] * len(tasks)
+    bar = tqdm(total=len(tasks), unit="run", desc="bench", disable=not progress)
+    if scheduler:  # one Dask task per run, on a LocalCluster or a running cluster (dvsot.pipeline.scene_runner)
+        from dvsot.pipeline.scene_runner import map_tasks
+
+        calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol) for t, f in tasks]
+        results = map_tasks(scheduler, run_one, calls, lambda k, r: bar.update(1))
+    elif jobs == 1:
+        for k, (t, f) in enumerate(tasks):
+            bar.set_postfix_str(f"{t} on {Path(f).stem}")
+            results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol)
+            bar.update(1)
+    else:
+        # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well); workers die with
+        # this process, and on any exception here they are stopped at once (dvsot.runtime.worker_pool)
+        with WorkerPool(jobs) as pool:
+            futures = {pool.submit(run_one, t, f, list(tracker_modules), max_segments, options.get(t), protocol): k
+                       for k, (t, f) in enumerate(tasks)}
+            for fut in as_completed(futures):
+                results[futures[fut]] = result(fut)
+                bar.update(1)
+    bar.close()
+    return results

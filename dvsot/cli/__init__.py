@@ -1,0 +1,99 @@
+"""The `dvsot` command line: dispatches to the sub-command modules in `dvsot.cli`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+
+from dvsot import __version__
+from dvsot.runtime import interrupts
+from dvsot.errors import RunError, UserError
+
+# name -> module; the module's docstring's first line is the help text.
+COMMANDS: dict[str, str] = {
+    "generate": "dvsot.cli.generate",
+    "simulate": "dvsot.cli.simulate",
+    "info": "dvsot.cli.info",
+    "train": "dvsot.cli.train",
+    "bench": "dvsot.cli.bench",
+    "export": "dvsot.cli.export",
+    "import": "dvsot.cli.import_",
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad flag reported in one line (not the usage block first), exit status 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, one sub-parser per command module that is present."""
+    parser = _Parser(prog="dvsot", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"dvsot {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, module_name in COMMANDS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:
+                continue  # command not built yet
+            raise
+        doc = (module.__doc__ or "").strip().splitlines()
+        p = sub.add_parser(name, help=doc[0] if doc else None, description=(module.__doc__ or None),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def _close_progress_bars() -> None:
+    """Close every live tqdm bar now (its last state stays on screen), so nothing is drawn after our message."""
+    tqdm = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", None) or []):
+        bar.close()
+
+
+def _one_line_warnings(prog: str) -> None:
+    """Show each warning as one stderr line "prog: note: message" (Python's default adds the source line)."""
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"{prog}: note: {' '.join(str(message).split())}", file=file or sys.stderr)
+
+    warnings.showwarning = show
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; bad input prints one line and returns 2."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
+    _one_line_warnings(f"dvsot {args.command}")
+    try:
+        return int(args._run(args) or 0)
+    except UserError as exc:
+        _close_progress_bars()  # a bar left open would redraw itself under the message at exit
+        print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        _close_progress_bars()
+        print(f"dvsot {args.command}: failed: {exc}", file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, SystemError) as caught:
+        exc = interrupts.interruption(caught)
+        if exc is None:  # a SystemError of its own
+            raise
+        _close_progress_bars()  # else each redraws itself at exit, under the message
+        why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
+        print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)
+        return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
+    finally:
+        interrupts.restore(saved)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

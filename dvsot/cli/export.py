@@ -1,0 +1,37 @@
+"""Write a dataset file's events to a file other event-camera tools read, with its box track beside it as CSV.
+
+The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 3, or EVT 2 with --evt 2),
+.dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds), .txt (rpg/ESIM: first line "width
+height", then "t x y p" with t in seconds). Timestamps are the recording's own clock (t + /t_offset).
+The boxes go to OUT.boxes.csv as t_s,x,y,w,h (nan = no target), which `dvsot import --boxes` reads.
+
+Examples:
+  dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.aedat4
+  dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.raw --evt 2
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of `dvsot export`."""
+    p.add_argument("file", help="dataset file (.h5)")
+    p.add_argument("-o", "--output", required=True, help="events file to write: .aedat4, .raw, .dat, .csv or .txt")
+    p.add_argument("--evt", choices=["2", "3"], default="3", help="EVT version of a .raw file (default 3)")
+    p.add_argument("--no-boxes", action="store_true", help="do not write OUT.boxes.csv")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Export the events (and boxes); print what was written."""
+    from dvsot.interop.event_files import boxes_path, event_format, export_dataset
+    from dvsot.runtime.outputs import output_file
+
+    event_format(args.output, "-o")  # an unknown suffix fails before anything is read
+    output_file(args.output, "-o", [args.file])
+    if not args.no_boxes:
+        output_file(boxes_path(args.output), "-o (its .boxes.csv)", [args.file])
+    for path in export_dataset(args.file, args.output, evt_version=f"evt{args.evt}", boxes=not args.no_boxes):
+        print(path)
+    return 0

@@ -1,0 +1,95 @@
+"""Turn frames you already have (image directory, video, .npy stack) into events in a dataset file.
+
+Examples:
+  dvsot simulate frames/ --fps 1000 -o out/frames.h5
+  dvsot simulate clip.mp4 -o out/clip.h5 --srgb --cp 0.25 --cn 0.25 --sigma 0.03
+  dvsot simulate stack.npy --timestamps times.txt -o out/stack.h5 --refractory-us 100
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from dvsot.defaults import SEGMENT_US
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of `dvsot simulate`."""
+    p.add_argument("input", help="directory of images (sorted by name), a video file, or a .npy (T,H,W) stack")
+    p.add_argument("-o", "--output", required=True, help="dataset file to write (.h5)")
+    timing = p.add_mutually_exclusive_group()
+    timing.add_argument("--fps", type=float, help="frame rate (frames per second); default: the video's own")
+    timing.add_argument("--timestamps", help="file of timestamps in seconds, one per line (as ESIM reads them)")
+    p.add_argument("--cp", type=float, default=0.2, help="ON contrast threshold, log intensity (default 0.2)")
+    p.add_argument("--cn", type=float, default=0.2, help="OFF contrast threshold, log intensity (default 0.2)")
+    p.add_argument("--sigma", type=float, default=0.0, help="per-pixel threshold std, log intensity (default 0)")
+    p.add_argument("--mismatch", choices=["fixed", "per_interval"], default="fixed",
+                   help="draw per-pixel thresholds once (fixed) or every interval, as ESIM (per_interval)")
+    p.add_argument("--refractory-us", type=float, default=0.0, help="refractory period, microseconds (default 0)")
+    p.add_argument("--log-eps", type=float, default=1e-3, help="eps in log(I + eps) (default 1e-3)")
+    p.add_argument("--shot-noise-hz", type=float, default=0.0, help="shot-noise events per pixel per second")
+    p.add_argument("--leak-hz", type=float, default=0.0, help="leak events per pixel per second")
+    p.add_argument("--srgb", action="store_true", help="undo the sRGB curve of 8/16-bit input before use")
+    p.add_argument("--seed", type=int, default=0, help="random seed (thresholds, noise)")
+    p.add_argument("--segment-us", type=int, default=SEGMENT_US,
+                   help=f"segment length, microseconds (default {SEGMENT_US})")
+    p.add_argument("--boxes", help="optional CSV of target boxes: t_s,x,y,w,h per line (pixels)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+# EventParams field -> the flag that sets it, so that a bad value is reported by its flag
+_PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
+                "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
+                "leak_hz": "--leak-hz"}
+
+
+def _event_params(args: argparse.Namespace):
+    """The simulator parameters from the flags; a bad value raises UserError naming its flag."""
+    from pydantic import ValidationError
+
+    from dvsot.errors import UserError
+    from dvsot.events import EventParams
+
+    values = dict(cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma, mismatch=args.mismatch,
+                  refractory_us=args.refractory_us, log_eps=args.log_eps, shot_noise_hz=args.shot_noise_hz,
+                  leak_hz=args.leak_hz)
+    try:
+        return EventParams(**values)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = str(err["loc"][0]) if err["loc"] else "?"
+        raise UserError(f"{_PARAM_FLAGS.get(field, field)} {values.get(field)}: {err['msg']}") from None
+
+
+def _check_flags(args: argparse.Namespace) -> None:
+    """Range checks of the numeric flags EventParams does not cover."""
+    import math
+
+    from dvsot.errors import UserError
+    from dvsot.pipeline.simulate import MAX_FPS
+    from dvsot.limits import MIN_SEGMENT_US
+
+    if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
+        raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
+    if args.segment_us < MIN_SEGMENT_US:
+        raise UserError(f"--segment-us must be at least {MIN_SEGMENT_US} (1 ms), got {args.segment_us}")
+    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
+        raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
+
+
+_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o"}  # how dvsot.pipeline.simulate's messages name them
+
+
+def run(args: argparse.Namespace) -> int:
+    """Stream frames through the event simulator into a dataset file; print a summary."""
+    import json
+
+    from dvsot.pipeline.simulate import simulate_file
+
+    params = _event_params(args)
+    _check_flags(args)
+    summary = simulate_file(args.input, args.output, params, args.seed, fps=args.fps, timestamps=args.timestamps,
+                            boxes=args.boxes, srgb=args.srgb, segment_us=args.segment_us, progress=not args.quiet,
+                            labels=_LABELS)
+    print(json.dumps(summary) if args.quiet else "\n".join(f"{k:>18}: {v}" for k, v in summary.items()))
+    return 0

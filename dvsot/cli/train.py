@@ -1,0 +1,153 @@
+"""Train SCTN (or its ANN twin, or SiamFC) on the training split of dataset files and write a checkpoint.
+
+Examples:
+  dvsot train --data data/dvsot21 -o runs/sctn.pt
+  dvsot train --data 'data/dvsot21/*.h5' --epochs 2 --loss linear --seed 3 -o runs/sctn_linear.pt
+  dvsot train --model sctn_ann -o runs/sctn_ann.pt        # SCTN's layers with ReLU, trained the same way
+  dvsot train --model siamfc -o runs/siamfc.pt            # SiamFC on ATSLTD frames
+"""
+
+from __future__ import annotations
+
+import argparse
+
+MODELS = ("sctn", "sctn_ann", "siamfc")
+SCTN_LIKE = ("sctn", "sctn_ann")
+# flags that only some models have: {flag dest: models}; a flag is given when its value is not None
+ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
+        "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
+        "tail_steps": ("sctn",), "input": ("sctn_ann",)}
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of `dvsot train`."""
+    p.add_argument("--model", choices=MODELS, default="sctn",
+                   help="sctn (default), sctn_ann (SCTN's layers with ReLU) or siamfc (on ATSLTD frames)")
+    p.add_argument("--data", nargs="+", default=["data/dvsot21"], help="dataset files, directories or globs")
+    p.add_argument("--split", default="train", help="split attribute to train on, or 'any' (default train)")
+    p.add_argument("-o", "--output", default=None, help="checkpoint to write (default runs/<model>.pt)")
+    p.add_argument("--epochs", type=int, default=None, help="default: the model's (sctn 3, siamfc 20)")
+    p.add_argument("--segments-per-epoch", type=int, default=None, help="default 400 (siamfc: search segments)")
+    p.add_argument("--batch-segments", type=int, default=None,
+                   help="segments per step (sctn: 60 samples each, default 4; siamfc: pairs, default 8)")
+    p.add_argument("--lr", type=float, default=None, help="default: the model's (sctn 2e-3, siamfc 1e-3)")
+    p.add_argument("--loss", choices=["exp", "linear", "basic"], default=None, help="default exp (sctn, sctn_ann)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-minutes", type=float, default=None, help="stop after this much training time")
+    p.add_argument("--channels", type=int, nargs=3, metavar="C", default=None,
+                   help="output channels of the three convolutions (default: sctn.network.NetworkConfig)")
+    p.add_argument("--fc", type=int, nargs=2, metavar="N", default=None,
+                   help="widths of the two hidden fully connected layers (default: sctn.network.NetworkConfig)")
+    p.add_argument("--ops-penalty", type=float, default=None, metavar="L",
+                   help="sctn: add L x synaptic operations per sample, in millions, to the loss (default 0)")
+    p.add_argument("--squared-error", action="store_true", default=None,
+                   help="deviation from the paper: square each sample's eq.-5 error (an ablation row)")
+    p.add_argument("--background-term", action="store_true", default=None,
+                   help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
+    p.add_argument("--calibrate", action="store_true", default=None,
+                   help="sctn, deviation from the paper: data-driven initial weight scale (an ablation row)")
+    p.add_argument("--tail-steps", type=int, default=None,
+                   help="sctn, deviation from the paper: empty steps after the 10 ms window (default 0)")
+    p.add_argument("--bias", action="store_true", default=None,
+                   help="deviation from the paper: layers with biases (an empty input can then fire)")
+    p.add_argument("--input", choices=["bins", "sum"], default=None,
+                   help="sctn_ann: the ten 1-ms bins as 20 channels (default) or their sum (2 channels)")
+    p.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice)")
+    p.add_argument("--quiet", action="store_true")
+
+
+MAX_WIDTH = 1024  # --channels and --fc: weights and activations grow with them (1024 x 107^2 x T: 0.5 GB a sample)
+
+
+def _network_config(args: argparse.Namespace):
+    """The network's layer sizes from --channels / --fc (NetworkConfig's defaults otherwise); the twin's TwinConfig."""
+    from dvsot.errors import UserError
+    from sctn.ann import TwinConfig
+    from sctn.network import NetworkConfig
+
+    tail = args.tail_steps or 0
+    if tail < 0:
+        raise UserError(f"--tail-steps must be >= 0, got {args.tail_steps}")
+    net = {"tail_steps": tail, "bias": bool(args.bias)}
+    for name in ("channels", "fc"):
+        sizes = getattr(args, name)
+        if sizes is not None:
+            if min(sizes) < 1 or max(sizes) > MAX_WIDTH:  # bounded: the weights are allocated from these
+                raise UserError(f"--{name} sizes must be between 1 and {MAX_WIDTH} (the bound), "
+                                f"got {' '.join(map(str, sizes))}")
+            net[name] = tuple(sizes)
+    if args.model == "sctn_ann":
+        return TwinConfig(**net, input=args.input or "bins")
+    return NetworkConfig(**net)
+
+
+def _train_config(args: argparse.Namespace):
+    """The model's training settings from the flags; a flag the model lacks or an out-of-range value raises
+    UserError naming the flag."""
+    from dvsot.errors import UserError
+    from sctn.training.snn import TrainConfig, TrainConfigError
+
+    for dest, models in ONLY.items():
+        if getattr(args, dest) is not None and args.model not in models:
+            raise UserError(f"--{dest.replace('_', '-')}: not a setting of --model {args.model} "
+                            f"(only of {', '.join(models)})")
+    common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr")
+              if getattr(args, k) is not None}
+    common.update(seed=args.seed, max_minutes=args.max_minutes)
+    try:
+        if args.model == "siamfc":
+            from benchmarks.trackers.siamfc.train import SiamFCTrainConfig
+
+            return SiamFCTrainConfig(**common)
+        return TrainConfig(**common, loss=args.loss or "exp", ops_penalty=args.ops_penalty or 0.0,
+                           squared_error=bool(args.squared_error), background_term=bool(args.background_term),
+                           calibrate=bool(args.calibrate), network=_network_config(args))
+    except TrainConfigError as exc:  # every field set here is the flag of the same name
+        raise UserError(f"--{exc.field.replace('_', '-')} {exc.problem}") from None
+
+
+def _trainer(model: str):
+    """The public training function of a model: (files, cfg, progress) -> (model, history)."""
+    if model == "siamfc":
+        from benchmarks.trackers.siamfc.train import train
+    elif model == "sctn_ann":
+        from sctn.ann import train_twin as train
+    else:
+        from sctn.training.snn import train
+    return train
+
+
+def run(args: argparse.Namespace) -> int:
+    """Train, then save the checkpoint (atomically) with its provenance."""
+    import json
+
+    import torch
+
+    from dvsot.dataset import find_datasets
+    from dvsot.errors import RunError, UserError
+    from sctn.checkpoint import check_checkpoint_output, save_checkpoint
+    from sctn.training.snn import provenance
+
+    cfg = _train_config(args)
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    files = find_datasets(args.data, split=None if args.split == "any" else args.split, need_events=True)
+    out = check_checkpoint_output(args.output or f"runs/{args.model}.pt", "-o", inputs=files)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    try:
+        model, history = _trainer(args.model)(files, cfg, progress=not args.quiet)
+    except UserError:  # already names its file (a UserError is a ValueError too)
+        raise
+    except ValueError as exc:
+        raise UserError(f"{', '.join(map(str, args.data))}: {exc}") from None
+    final = history["val"][-1] if history["val"] else {}
+    if history.get("silent"):  # a dead network is no checkpoint: keep what -o held
+        raise RunError(f"{out}: not written: the trained network is silent (target output {final['vmax_max']:g} "
+                       f"at most on the {history['val_segments']} validation segments' samples); train again "
+                       f"with another --seed" + (" or --calibrate" if args.model == "sctn" else ""))
+    save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
+    print(json.dumps({"checkpoint": str(out), "model": args.model, "steps": history["steps"],
+                      "minutes": round(history["minutes"], 2), "train_segments": history["train_segments"],
+                      "val": final}))
+    return 0

@@ -1,0 +1,102 @@
+"""Segments of dataset files for PyTorch's DataLoader (and tonic's transforms), opened lazily in each worker.
+
+    from torch.utils.data import DataLoader
+    from dvsot.dataset.torchdata import SegmentDataset, collate_segments
+
+    data = SegmentDataset("data/dvsot21", split="train", transform=my_transform)
+    loader = DataLoader(data, batch_size=8, shuffle=True, num_workers=2, collate_fn=collate_segments)
+    for events, boxes in loader:      # a list of structured (x, y, t, p) arrays, boxes (B, 4) float32
+        ...
+
+An item is (events, box): the segment's events as a structured array with fields x, y, t, p
+(tonic's layout, `dvsot.events.STRUCTURED_DTYPE`; t in microseconds of the file's clock minus
+/t_offset) and its ground-truth box xywh (pixels, float32). `transform` maps the events (a tonic
+transform such as `tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works),
+`target_transform` the box. The object holds only paths and an index, so it pickles; each process
+opens the files it reads on first use and keeps them open (HDF5 handles must not cross a fork).
+No torch import here: DataLoader takes any object with __len__ and __getitem__.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Callable
+
+import numpy as np
+
+from dvsot.dataset import Dataset, find_datasets
+
+
+class SegmentDataset:
+    """Map-style dataset of every segment with a ground-truth box (or every segment) of some dataset files."""
+
+    def __init__(self, data: Any, split: str | None = None, transform: Callable | None = None,
+                 target_transform: Callable | None = None, with_box: bool = True, verify: bool = False) -> None:
+        self.paths = [str(p) for p in find_datasets(data, split=split, verify=verify)]
+        self.transform, self.target_transform = transform, target_transform
+        rows, sizes = [], set()
+        for k, path in enumerate(self.paths):
+            with Dataset(path) as ds:
+                keep = ds.segment_scored()
+                if with_box:
+                    keep = keep & np.isfinite(ds.segment_boxes()).all(axis=1)
+                rows.append(np.stack([np.full(int(keep.sum()), k), np.flatnonzero(keep)], axis=1))
+                sizes.add((ds.width, ds.height))
+        self._index = np.concatenate(rows).astype(np.int64) if rows else np.empty((0, 2), np.int64)
+        self._sizes = sizes
+        self._open: dict[int, Dataset] = {}
+        self._pid: int | None = None
+
+    @property
+    def sensor_size(self) -> tuple[int, int, int]:
+        """(width, height, 2), tonic's sensor_size, when every file has one sensor size."""
+        if len(self._sizes) != 1:
+            raise ValueError(f"the files have {len(self._sizes)} sensor sizes: {sorted(self._sizes)}")
+        w, h = next(iter(self._sizes))
+        return (w, h, 2)
+
+    def __len__(self) -> int:
+        return int(len(self._index))
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_open"], state["_pid"] = {}, None  # open files stay with the process that opened them
+        return state
+
+    def _dataset(self, k: int) -> Dataset:
+        if self._pid != os.getpid():  # a fresh process (or a fork): open files of our own
+            self._open, self._pid = {}, os.getpid()
+        if k not in self._open:
+            self._open[k] = Dataset(self.paths[k])
+        return self._open[k]
+
+    def locate(self, i: int) -> tuple[str, int]:
+        """(file path, segment index) of item i."""
+        k, s = self._index[i]
+        return self.paths[int(k)], int(s)
+
+    def __getitem__(self, i: int) -> tuple[Any, Any]:
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"item {i} out of range for {len(self)} segments")
+        k, s = self._index[i]
+        seg = self._dataset(int(k)).segment(int(s))
+        events: Any = seg.events.to_structured()
+        box: Any = seg.box.astype(np.float32)
+        if self.transform is not None:
+            events = self.transform(events)
+        if self.target_transform is not None:
+            box = self.target_transform(box)
+        return events, box
+
+    def close(self) -> None:
+        """Close the files this process opened."""
+        if self._pid == os.getpid():
+            for ds in self._open.values():
+                ds.close()
+        self._open = {}
+
+
+def collate_segments(batch: list[tuple[Any, Any]]) -> tuple[list, np.ndarray]:
+    """DataLoader collate_fn: events as a list (segments differ in length), boxes stacked to (B, 4) float32."""
+    events = [e for e, _ in batch]
+    return events, np.stack([np.asarray(b, np.float32) for _, b in batch])

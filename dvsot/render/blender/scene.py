@@ -1,0 +1,306 @@
+"""A scene built in Blender from a SceneConfig: pose it at a time, render intensity and masks.
+
+One render call gives three images; the rendered ones are read back from a multilayer EXR written
+under /dev/shm (the render result cannot be read from memory in background mode):
+
+* view layer "main": the whole scene; Combined -> linear-light luma (Rec. 709), Object Index ->
+  the *visible* target mask (occluders in front hide it);
+* the *amodal* target mask (the paper's "target rendered separately"): by default the target's
+  triangles projected with the same camera and rasterised at pixel centres (dvsot.render.raster), which
+  gives the pixels an object-index pass of the target alone gives, at a fraction of the cost; with
+  render.amodal_mask = "render", a second view layer "mask" holding the target alone (every other
+  collection excluded) whose Object Index is the mask.
+
+Cycles runs on the CPU with a fixed seed (no animated seed) and no denoising, so a static pixel gets
+exactly the same value in every frame and produces no false events.
+
+Surfaces and their shader graphs are dvsot.render.blender.materials' job; with render.bake_background the
+background plane's procedural colour is baked into images once at build time (dvsot.render.blender.bake).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from dvsot.render.blender.bake import bake_background, should_bake
+from dvsot.render.blender.materials import direct_lighting, material, texture_colour
+from dvsot.render.blender.quiet import quiet_stdout
+from dvsot.scene import Background, SceneConfig, SceneObject, Texture
+from dvsot.render.plane_view import seen_part
+from dvsot.render.raster import silhouette_mask, triangulate
+from dvsot.scene.shapes import mesh_for
+from dvsot.scene.trajectory import pose_and_scale
+
+TARGET_INDEX = 1
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+# camera poses sampled over the sequence to find the part of the background plane it sees
+_VIEW_SAMPLES = 65
+
+
+def _mesh_object(name: str, obj: SceneObject, collection, surface: str = "principled") -> bpy.types.Object:
+    """A mesh object for obj (its shape scaled to size_m, its material) linked into collection."""
+    verts, faces = mesh_for(obj.shape, obj.mesh)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata((verts * obj.size_m).tolist(), [], faces)
+    me.validate()
+    me.update()
+    if obj.shape in {"sphere", "ball", "cylinder", "torus", "bottle", "cat"}:
+        with contextlib.suppress(AttributeError):
+            me.shade_smooth()
+    me.materials.append(material(name + "_mat", obj.material, surface))
+    ob = bpy.data.objects.new(name, me)
+    collection.objects.link(ob)
+    return ob
+
+
+class BlenderScene:
+    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask)."""
+
+    def __init__(self, cfg: SceneConfig) -> None:
+        self.cfg = cfg
+        self.width, self.height = cfg.sensor.width, cfg.sensor.height
+        self._tmp = Path(tempfile.mkdtemp(prefix="dvsot-render-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
+        with quiet_stdout():
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+        self.scene = bpy.context.scene
+        self._setup_render()
+        self._build()
+
+    def close(self) -> None:
+        """Remove the temporary render directory."""
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def __enter__(self) -> "BlenderScene":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _setup_render(self) -> None:
+        sc, r = self.scene, self.cfg.render
+        sc.render.engine = "CYCLES"
+        sc.cycles.device = "CPU"
+        sc.cycles.samples = r.samples
+        sc.cycles.use_denoising = False
+        sc.cycles.use_adaptive_sampling = False
+        sc.cycles.seed = self.cfg.derived_seed("cycles") % (2**31)
+        sc.cycles.use_animated_seed = False
+        # With a single light (one lamp, no emissive surface; the world is sampled apart) the light tree
+        # only adds work: the samples, and so the image, are the same without it, and faster. With
+        # more lights it chooses among them differently, so it stays on there.
+        cfg = self.cfg
+        materials = [cfg.target.material] + [o.material for o in cfg.objects]
+        if cfg.background.kind == "plane":
+            materials.append(cfg.background.material)
+        sc.cycles.use_light_tree = len(cfg.lights) + sum(m.emission > 0 for m in materials) > 1
+        sc.cycles.max_bounces = 0 if r.shading == "direct" else r.max_bounces  # direct: emission only
+        for attr in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+                     "transparent_max_bounces"):
+            setattr(sc.cycles, attr, min(getattr(sc.cycles, attr), max(r.max_bounces, 1)))
+        sc.render.use_persistent_data = r.persistent_data
+        sc.render.resolution_x, sc.render.resolution_y = self.width, self.height
+        sc.render.resolution_percentage = 100
+        sc.render.pixel_aspect_x = sc.render.pixel_aspect_y = 1.0
+        if r.threads:
+            sc.render.threads_mode = "FIXED"
+            sc.render.threads = r.threads
+        sc.view_settings.view_transform = "Standard"
+        sc.view_settings.look = "None"
+        sc.view_settings.exposure = 0.0
+        sc.view_settings.gamma = 1.0
+        sc.render.film_transparent = False
+        sc.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+        sc.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+        sc.render.image_settings.color_depth = "32"
+        sc.render.image_settings.exr_codec = "NONE"
+
+
+    def _build(self) -> None:
+        cfg, sc = self.cfg, self.scene
+        self.collections = {}
+        for name in ("target", "others", "background"):
+            col = bpy.data.collections.new(name)
+            sc.collection.children.link(col)
+            self.collections[name] = col
+        self._camera()
+        surface = cfg.render.surface
+        self.target = _mesh_object("target", cfg.target, self.collections["target"], surface)
+        self.target.pass_index = TARGET_INDEX
+        verts, faces = mesh_for(cfg.target.shape, cfg.target.mesh)
+        self._target_verts = np.asarray(verts, np.float64) * cfg.target.size_m
+        self._target_tris = triangulate(faces)
+        self.others = [(_mesh_object(o.name or f"{o.role}_{i}", o, self.collections["others"], surface), o)
+                       for i, o in enumerate(cfg.objects)]
+        self._background(cfg.background)
+        if cfg.background.kind == "plane" and should_bake(cfg.background.material.texture, cfg.render.bake_background):
+            self.bake_sizes = bake_background(self.background_plane, sc, cfg.render, cfg.background.size_m,
+                                              *self._plane_view())
+        direct = cfg.render.shading == "direct"
+        if not direct:  # with direct shading the suns live in the materials' shaders (direct_lighting)
+            self._lights()
+        self._world()
+        if direct:
+            self._direct_lighting()
+        main = sc.view_layers[0]
+        main.name = "main"
+        main.use_pass_object_index = True
+        main.use_pass_z = False  # on by default; nothing reads depth, and writing it costs render time
+        if not cfg.render.specular:
+            self._matte()
+        if cfg.render.amodal_mask == "render":
+            mask = sc.view_layers.new("mask")
+            mask.use_pass_object_index = True
+            mask.use_pass_z = False
+            for name in ("others", "background"):
+                mask.layer_collection.children[name].exclude = True
+            mask.use_pass_combined = False
+        self.set_time(0.0)
+
+    def _camera(self) -> None:
+        """The camera object with the sensor's intrinsics (focal length and principal point as lens and shift)."""
+        cfg = self.cfg
+        cam_data = bpy.data.cameras.new("camera")
+        k = cfg.sensor.intrinsics()
+        cam_data.sensor_fit = "HORIZONTAL" if self.width >= self.height else "VERTICAL"
+        cam_data.sensor_width = cfg.sensor.sensor_width_mm
+        cam_data.sensor_height = cfg.sensor.sensor_width_mm
+        cam_data.lens = k.fx * cfg.sensor.sensor_width_mm / max(self.width, self.height)
+        cam_data.shift_x = -(k.cx - self.width / 2) / max(self.width, self.height)
+        cam_data.shift_y = (k.cy - self.height / 2) / max(self.width, self.height)
+        cam_data.clip_start, cam_data.clip_end = 0.01, 1e5
+        self.camera = bpy.data.objects.new("camera", cam_data)
+        self.scene.collection.objects.link(self.camera)
+        self.scene.camera = self.camera
+        self._intrinsics = k
+
+    def _lights(self) -> None:
+        """The scene file's lights as Blender lamps."""
+        for i, light in enumerate(self.cfg.lights):
+            data = bpy.data.lights.new(f"light_{i}", light.type.upper())
+            data.energy = light.strength
+            data.color = light.color
+            if light.type == "area":
+                data.size = light.size_m
+            ob = bpy.data.objects.new(f"light_{i}", data)
+            ob.location = light.location
+            ob.rotation_euler = tuple(np.radians(light.rotation_deg))
+            self.collections["background"].objects.link(ob)
+
+    def _world(self) -> None:
+        """The world: a uniform colour, or the environment background's texture."""
+        cfg = self.cfg
+        world = bpy.data.worlds.new("world")
+        self.scene.world = world
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            world.use_nodes = True
+        bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+        bg.inputs["Color"].default_value = (*cfg.world.color, 1.0)
+        bg.inputs["Strength"].default_value = cfg.world.strength
+        if cfg.background.kind == "environment":
+            nt = world.node_tree
+            coords = nt.nodes.new("ShaderNodeTexCoord")
+            colour = texture_colour(nt, cfg.background.material.texture or Texture(type="noise"),
+                                    coords.outputs["Generated"])
+            nt.links.new(colour, bg.inputs["Color"])
+
+    def _direct_lighting(self) -> None:
+        """render.shading = "direct": every material lit in its shader by the suns and the world."""
+        from mathutils import Euler, Vector
+
+        cfg = self.cfg
+        # a sun shines along its local -Z: the direction to it is +Z rotated
+        suns = [(tuple(Euler([float(a) for a in np.radians(light.rotation_deg)], "XYZ").to_matrix()
+                       @ Vector((0.0, 0.0, 1.0))),
+                 tuple(light.strength * np.asarray(light.color) / np.pi)) for light in cfg.lights]
+        ambient = tuple(float(c) * cfg.world.strength for c in cfg.world.color)
+        for mat in bpy.data.materials:
+            direct_lighting(mat, suns, ambient)
+
+    def _matte(self) -> None:
+        """render.specular = false: no glossy lobe (Cycles skips a closure whose weight is zero)."""
+        for mat in bpy.data.materials:
+            for node in mat.node_tree.nodes if mat.node_tree else ():
+                if node.type == "BSDF_PRINCIPLED":
+                    node.inputs["Specular IOR Level"].default_value = 0.0
+                elif node.type == "MIX_SHADER":  # lean surface: all weight on the diffuse lobe
+                    for link in node.inputs["Fac"].links:
+                        mat.node_tree.links.remove(link)
+                    node.inputs["Fac"].default_value = 0.0
+
+    def _background(self, bg: Background) -> None:
+        """The background plane object (kind "plane"); an environment background is the world's."""
+        if bg.kind != "plane":
+            return
+        plane = SceneObject(shape="plane", size_m=bg.size_m, material=bg.material,
+                            trajectory={"keyframes": [{"t": 0, "location": bg.location, "rotation_deg": bg.rotation_deg}],
+                                        "interpolation": "linear"})
+        self._plane_spec = plane
+        self.background_plane = _mesh_object("background", plane, self.collections["background"],
+                                             self.cfg.render.surface)
+        m, _ = pose_and_scale(plane.trajectory, 0.0)
+        self.background_plane.matrix_world = m.T.tolist()
+
+    def _plane_view(self) -> tuple[np.ndarray, float]:
+        """((u0, v0, u1, v1), px_per_m): the part of the background plane the camera sees over the whole
+        sequence and its largest on-screen density (dvsot.render.plane_view.seen_part)."""
+        cfg = self.cfg
+        seed = cfg.derived_seed("camera_shake")
+        cameras = np.stack([pose_and_scale(cfg.camera, float(t), seed)[0]
+                            for t in np.linspace(0.0, cfg.duration_s, _VIEW_SAMPLES)])
+        plane_to_world = pose_and_scale(self._plane_spec.trajectory, 0.0)[0]
+        return seen_part(plane_to_world, cfg.background.size_m, cameras, self._intrinsics)
+
+    def set_time(self, t: float) -> None:
+        """Pose camera and objects at time t (seconds)."""
+        cfg = self.cfg
+        m, _ = pose_and_scale(cfg.camera, t, cfg.derived_seed("camera_shake"))
+        self.camera.matrix_world = m.T.tolist()
+        self._camera_matrix = m
+        for ob, spec in [(self.target, cfg.target)] + self.others:
+            m, s = pose_and_scale(spec.trajectory, t, cfg.derived_seed("shake:" + ob.name))
+            m[:3, :3] = m[:3, :3] * s
+            ob.matrix_world = m.T.tolist()
+            if ob is self.target:
+                self._target_matrix = m
+
+    def raster_amodal_mask(self) -> np.ndarray:
+        """The amodal target mask at the current pose, from the target's projected triangles (bool HxW)."""
+        m = self._target_matrix
+        verts = self._target_verts @ m[:3, :3].T + m[:3, 3]
+        return silhouette_mask(verts, self._target_tris, self._camera_matrix, self._intrinsics)
+
+    def render(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(linear luma float32 HxW, amodal target mask bool HxW, visible target mask bool HxW) at t seconds."""
+        import OpenEXR
+
+        self.set_time(t)
+        path = self._tmp / "frame.exr"
+        self.scene.render.filepath = str(path)
+        with quiet_stdout():
+            result = bpy.ops.render.render(write_still=True)
+        if "FINISHED" not in result or not path.is_file():
+            raise RuntimeError(f"Blender render failed at t={t:.6f} s")
+        try:
+            with OpenEXR.File(str(path)) as f:
+                channels = {}
+                for part in f.parts:
+                    channels.update(part.channels)
+        finally:
+            path.unlink(missing_ok=True)
+        rgba = channels["main.Combined"].pixels
+        luma = rgba[..., :3] @ _LUMA
+        visible = np.rint(channels["main.Object Index.X"].pixels) == TARGET_INDEX
+        if self.cfg.render.amodal_mask == "render":
+            amodal = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
+        else:
+            amodal = self.raster_amodal_mask()
+        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), amodal, visible

@@ -1,0 +1,302 @@
+"""Outputs: paths checked before any work (exit 2), written as temps and renamed into place, a run's all at once.
+
+* `output_file` / `output_dir`: the checks every command runs before it starts (including a probe
+  file created and removed in the target directory), plus the clean-up of temps that dead local
+  processes left there (dvsot.runtime.staging).
+* `replacing(path)`: a temp to write; renamed onto `path` when the block succeeds, removed otherwise.
+* `run_outputs()`: every output staged inside the block (by `replacing`, `stage`, the dataset writer)
+  is renamed into place together when the block ends, or none is. The renames run with SIGINT/SIGTERM
+  deferred, after a journal naming them all is on disk, so a SIGKILL midway is completed by the next
+  run; a manifest (the journal, complete) written last names the run and each file's SHA-256.
+* A symlink given as an output is written through: the temp goes beside the link's target and the
+  rename replaces the target; the link stays.
+* Writing errors from the operating system (a full disk, a file system gone read-only) become one
+  `RunError` line naming the output: exit status 1, nothing replaced, no temp left.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import errno
+import hashlib
+import os
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from dvsot.runtime import interrupts, staging
+from dvsot.errors import RunError, UserError
+
+MANIFEST_FORMAT = "dvsot-run"
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+_DISK_WORDS = ("No space left on device", "Disk quota exceeded", "Read-only file system", "errno = 28",
+               "File too large")
+
+
+def target(path: str | os.PathLike) -> Path:
+    """Where writing `path` lands: the path itself, or the end of its chain of symlinks."""
+    p = Path(path)
+    return Path(os.path.realpath(p)) if p.is_symlink() else p
+
+
+def check_writable(directory: str | os.PathLike, what: str) -> None:
+    """Create and remove a probe file in `directory`; UserError naming `what` if that fails."""
+    d = Path(directory)
+    probe = staging.temp_name(d / "probe", suffix="")
+    try:
+        os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        os.unlink(probe)
+    except OSError as exc:
+        raise UserError(f"{what}: cannot write in {d} ({exc.strerror or exc})") from None
+    finally:  # gone already, unless a signal landed between the create and the unlink (the name is this run's)
+        with contextlib.suppress(OSError):
+            os.unlink(probe)
+
+
+def output_file(path: str | Path, flag: str, inputs: Iterable[str | Path] = ()) -> Path:
+    """`path` as a file a command may (re)write: its directory exists and is writable, it is no directory and no input."""
+    p = Path(path)
+    if p.is_dir():
+        raise UserError(f"{p}: {flag} names a directory, not a file")
+    t = target(p)
+    if not t.parent.is_dir():
+        where = f" (a symlink to {t})" if t != p else ""
+        raise UserError(f"{p}: {flag}{where}: directory {t.parent} does not exist")
+    if p.exists():
+        for i in inputs:
+            if Path(i).exists() and os.path.samefile(p, i):
+                raise UserError(f"{p}: {flag} would overwrite an input file")
+    check_writable(t.parent, f"{p}: {flag}")
+    staging.clean_stale(t.parent)
+    return p
+
+
+def output_dir(path: str | Path, flag: str) -> Path:
+    """`path` as a directory a command may write into (made later, when there is output): not a file, writable."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise UserError(f"{p}: {flag} names a file, not a directory")
+    for parent in [p, *p.parents]:
+        if parent.exists():
+            if not parent.is_dir():
+                raise UserError(f"{p}: {flag}: {parent} is a file, not a directory")
+            check_writable(parent, f"{p}: {flag}")
+            if parent == p:
+                staging.clean_stale(p)
+            break
+    return p
+
+
+def disk_error(exc: BaseException) -> str | None:
+    """The reason, if `exc` (or what caused it) is the operating system refusing a write, else None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in _DISK_ERRNOS:
+            return os.strerror(exc.errno)
+        text = str(exc)
+        for words in _DISK_WORDS:
+            if words in text:
+                return "No space left on device" if words == "errno = 28" else words
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+@contextmanager
+def writing(path: str | os.PathLike) -> Iterator[None]:
+    """Turn an operating-system write failure inside the block into one RunError line naming `path`."""
+    try:
+        yield
+    except (OSError, RuntimeError) as exc:
+        reason = disk_error(exc)
+        if reason is None:
+            raise
+        raise RunError(f"{path}: cannot write ({reason}); nothing was replaced") from None
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class RunOutputs:
+    """The outputs of one run: each staged as a temp beside its target, all renamed together by `commit()`."""
+
+    def __init__(self, manifest: str | os.PathLike | None = None) -> None:
+        self.token = staging.new_token()
+        self.run_id = f"{staging.host()}-{os.getpid()}-{self.token}"
+        self.manifest = Path(manifest) if manifest is not None else None
+        self._entries: dict[Path, dict] = {}  # final (resolved) -> {"staged", "kind", "old", "ready"}
+        self._names: dict[Path, Path] = {}  # as given -> final
+
+    def stage(self, path: str | os.PathLike, ready: bool = True) -> Path:
+        """A temp path for the file `path` (same suffix), renamed onto it at commit; `ready=False` until `done()`."""
+        final = target(path)
+        if final in self._entries:
+            return Path(self._entries[final]["staged"])
+        staging.clean_stale(final.parent)
+        tmp = staging.temp_name(final, token=self.token)
+        self._entries[final] = {"staged": tmp, "kind": "file", "old": None, "ready": ready}
+        self._names[Path(path)] = final
+        return tmp
+
+    def stage_dir(self, path: str | os.PathLike) -> Path:
+        """A new empty directory that replaces the directory `path` (whole) at commit."""
+        final = target(path)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        staging.clean_stale(final.parent)
+        tmp = staging.temp_name(final, token=self.token, suffix="")
+        tmp.mkdir()
+        old = staging.temp_name(final, "old", token=self.token, suffix="")
+        self._entries[final] = {"staged": tmp, "kind": "dir", "old": old, "ready": True}
+        self._names[Path(path)] = final
+        return tmp
+
+    def staged(self, path: str | os.PathLike) -> Path:
+        """The temp that holds `path`'s new content until the commit."""
+        return Path(self._entries[target(path)]["staged"])
+
+    def done(self, path: str | os.PathLike) -> None:
+        """Mark the staged file of `path` complete (writers that stage first and finish later)."""
+        self._entries[target(path)]["ready"] = True
+
+    def drop(self, path: str | os.PathLike) -> None:
+        """Forget `path`'s staged file and remove it (its writer failed)."""
+        e = self._entries.pop(target(path), None)
+        if e is not None:
+            staging._remove(Path(e["staged"]))
+
+    def abort(self) -> None:
+        """Remove every staged temp; nothing at any target is touched."""
+        for e in self._entries.values():
+            staging._remove(Path(e["staged"]))
+        self._entries.clear()
+
+    def _manifest_body(self, journal: Path) -> dict:
+        root = self.manifest.parent if self.manifest else journal.parent
+        files = {}
+        for final, e in self._entries.items():
+            rel = os.path.relpath(final, root)
+            staged = Path(e["staged"])
+            files[rel] = ({"kind": "dir", "files": sum(1 for _ in staged.rglob("*"))} if e["kind"] == "dir" else
+                          {"size": staged.stat().st_size, "sha256": _sha256(staged)})
+        return {"format": MANIFEST_FORMAT, "run": self.run_id, "written_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ",
+                time.gmtime()), "files": files}
+
+    def commit(self) -> None:
+        """Rename every staged output into place (a journal first, the manifest last), or none if interrupted."""
+        if not self._entries:
+            return
+        missing = [str(f) for f, e in self._entries.items() if not e["ready"]]
+        if missing:
+            raise RuntimeError(f"staged outputs never completed: {', '.join(missing)}")
+        interrupts.check()  # a signal or a dead parent before the commit: nothing is replaced
+        entries = [{"final": str(f), "staged": str(e["staged"]), "kind": e["kind"],
+                    "old": str(e["old"]) if e["old"] else None} for f, e in self._entries.items()]
+        if len(entries) == 1 and entries[0]["kind"] == "file" and self.manifest is None:
+            with interrupts.deferred():
+                interrupts.check()
+                os.replace(entries[0]["staged"], entries[0]["final"])  # one rename is atomic: no journal needed
+                self._entries.clear()
+            return
+        first = Path(entries[0]["final"])
+        home = self.manifest.parent if self.manifest else first.parent
+        journal = staging.temp_name(self.manifest or first, "commit", token=self.token, suffix=".json")
+        for e in entries:
+            if e["kind"] == "file":
+                _fsync(Path(e["staged"]))
+        body = self._manifest_body(journal)
+        dirs = sorted({str(Path(e["final"]).parent) for e in entries} - {str(home)})
+        pointers = [staging.temp_name(Path(d) / journal.name, "commit", token=self.token, suffix=".json")
+                    for d in dirs]
+        body.update(entries=entries, pointers=[str(p) for p in pointers],
+                    manifest=str(self.manifest) if self.manifest else None)
+        written = []
+        try:
+            with interrupts.deferred():
+                interrupts.check()
+                for p in pointers:  # other directories' temps belong to this commit once the journal exists
+                    staging.write_json(p, {"journal": str(journal)}, self.token)
+                    written.append(p)
+                staging.write_json(journal, body, self.token)  # from here on, the run is complete on disk
+                written = []
+                self._entries.clear()  # the journal owns the staged files now: never removed, only renamed
+                try:
+                    staging.apply_journal(journal)
+                except OSError as exc:
+                    raise RunError(f"{first}: renaming this run's outputs into place failed ({exc.strerror or exc}); "
+                                   f"the next dvsot run in {journal.parent} completes it from {journal.name}") from None
+        finally:
+            for p in written:
+                p.unlink(missing_ok=True)
+
+
+_current: contextvars.ContextVar[RunOutputs | None] = contextvars.ContextVar("dvsot_run_outputs", default=None)
+
+
+def current_run() -> RunOutputs | None:
+    """The run whose `run_outputs()` block is open, if any."""
+    return _current.get()
+
+
+@contextmanager
+def run_outputs(manifest: str | os.PathLike | None = None) -> Iterator[RunOutputs]:
+    """All outputs staged in the block are committed together at its end (or removed on an exception).
+
+    `manifest`: where to write the run's manifest (JSON: run id, each file's size and SHA-256); None
+    writes none (the journal still makes the commit all-or-nothing). Nested blocks join the outer run.
+    """
+    outer = _current.get()
+    if outer is not None:
+        yield outer
+        return
+    run = RunOutputs(manifest)
+    token = _current.set(run)
+    try:
+        yield run
+        _current.reset(token)
+        token = None
+        first = next(iter(run._entries), manifest or "output")
+        with writing(first):
+            run.commit()
+    finally:
+        if token is not None:
+            _current.reset(token)
+        run.abort()
+
+
+@contextmanager
+def replacing(path: str | Path) -> Iterator[Path]:
+    """A temp path beside `path` (same suffix) to write; renamed onto `path` if the block succeeds, else removed.
+
+    Inside `run_outputs()`, the rename waits for the run's commit.
+    """
+    run = current_run()
+    if run is not None:
+        tmp = run.stage(path, ready=False)
+        try:
+            with writing(path):
+                yield tmp
+        except BaseException:
+            run.drop(path)
+            raise
+        run.done(path)
+        return
+    with run_outputs() as own:
+        tmp = own.stage(path, ready=False)
+        with writing(path):
+            yield tmp
+        own.done(path)

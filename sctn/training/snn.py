@@ -1,0 +1,165 @@
+"""Training SCTN directly as an SNN (STCA-style surrogate gradients through time) on dataset files.
+
+Per training segment (one with a ground-truth box of at least `min_box_px` a side): 20 positive
+(IoU >= 0.7) and 40 negative (IoU <= 0.5) uniform samples (paper §2.4), encoded as the events inside
+each box (sctn/encoding.py); the loss is the voltage loss of sctn/loss.py on each output neuron's
+maximum voltage over the time window, optionally plus a penalty on the synaptic operations the spikes
+drive (`ops_penalty`, the energy model of sctn/energy.py). Adam. Every `val_every` steps a fixed held-out
+set of segments (every 10th segment of each file) is scored. Fine-tuning lives in sctn/finetune.py
+(`finetune`, re-exported here).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from pydantic import Field, SerializeAsAny
+
+from dvsot.dataset import Dataset
+from dvsot.events import EventBatch
+from sctn.encoding import encode_boxes
+from sctn.energy import layer_ops
+from sctn.finetune import finetune  # noqa: F401  (re-exported: callers import it from here)
+from sctn.loss import LossKind, voltage_loss
+from sctn.network import SCTN, NetworkConfig
+from sctn.neurons import THETA
+from sctn.samples import TRAIN, labelled_samples
+from sctn.training.loop import TrainBudget, TrainConfigError, fit, held_out, spread  # noqa: F401  (TrainConfigError)
+
+MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment
+
+
+class TrainConfig(TrainBudget):
+    """Training settings of SCTN (and its twin): TrainBudget's (segments, optimiser, budget), the loss (eq. 5-6 by
+    default), the named deviations (all off: the paper preset) and the network's layer sizes."""
+
+    batch_segments: int = Field(4, ge=1, le=MAX_BATCH_SEGMENTS)  # every segment's 60 samples are built at once
+    loss: LossKind = "exp"
+    ops_penalty: float = Field(0.0, ge=0)  # loss weight per million synaptic operations (ACs) per sample; 0 = off
+    squared_error: bool = False  # deviation: square each sample's eq.-5 error (sctn/loss.py)
+    background_term: bool = False  # deviation: add the mirrored background-neuron error (sctn/loss.py)
+    calibrate: bool = False  # deviation: data-driven weight scale at initialisation (SCTN.calibrate), an ablation row
+    network: SerializeAsAny[NetworkConfig] = Field(default_factory=NetworkConfig)  # a TwinConfig keeps its fields
+
+
+def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:
+    """Indices of segments whose ground truth exists and is at least min_box_px on each side."""
+    b = ds.segment_boxes()
+    ok = np.isfinite(b).all(axis=1) & (b[:, 2] >= min_box_px) & (b[:, 3] >= min_box_px)
+    return np.flatnonzero(ok)
+
+
+def segment_batch(items: list[tuple[EventBatch, int, np.ndarray]], image_wh: list[tuple[int, int]],
+                  rng: np.random.Generator, net_cfg: NetworkConfig, specs=TRAIN):
+    """Encoded samples of several segments: inputs (N, T, 2, S, S), IoUs (N,), positive flags (N,)."""
+    xs, ious, pos = [], [], []
+    for (events, t0, box), wh in zip(items, image_wh):
+        boxes, iou, p = labelled_samples(rng, box, specs, wh)
+        xs.append(encode_boxes(events, t0, boxes, net_cfg))
+        ious.append(iou)
+        pos.append(p)
+    return torch.cat(xs), torch.from_numpy(np.concatenate(ious)), torch.from_numpy(np.concatenate(pos))
+
+
+def batch_loss(vmax: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> torch.Tensor:
+    """The voltage loss of cfg (eq. 5-6 of the target neuron by default) on maximum voltages (N, 2)."""
+    return voltage_loss(vmax, iou, pos, cfg.loss, squared=cfg.squared_error, background=cfg.background_term)
+
+
+def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> dict:
+    """Loss, firing accuracy of the target neuron and mean V_max of positives / negatives on one batch."""
+    with torch.no_grad():
+        vmax = model(x).max(dim=1).values
+        loss = float(batch_loss(vmax, iou, pos, cfg))
+    fires = vmax[:, 1] >= THETA
+    return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
+            "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
+            "vmax_neg": float(vmax[~pos, 1].mean()) if (~pos).any() else float("nan"),
+            "vmax_max": float(vmax[:, 1].max())}
+
+
+def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
+                  cfg: TrainConfig) -> tuple[torch.Tensor, float | None]:
+    """The voltage loss of one batch, plus cfg.ops_penalty x the mean synaptic operations per sample in
+    millions (the ACs the spikes of conv1..fc2 drive; input events are given, not learned), and those ACs."""
+    if cfg.ops_penalty <= 0:
+        return batch_loss(model(x).max(dim=1).values, iou, pos, cfg), None
+    volts, spikes = model.forward_record(x)
+    ops = torch.stack(layer_ops(model, spikes)[1:]).sum(dim=0).mean()
+    loss = batch_loss(volts.max(dim=1).values, iou, pos, cfg) + cfg.ops_penalty * ops / 1e6
+    return loss, float(ops.detach())
+
+
+def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
+          build=SCTN) -> tuple[SCTN, dict]:
+    """Train a new SCTN on the given dataset files; returns the model and a history of metrics. `build(cfg.network)`
+    makes the network (another with SCTN's interface: sctn.ann's twin); its `calibrate`, if any, runs first."""
+    rng = np.random.default_rng(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    datasets = [Dataset(f) for f in files]
+    try:
+        train_items, val_items = [], []
+        for d, ds in enumerate(datasets):
+            fit_idx, val_idx = held_out(usable_segments(ds, cfg.min_box_px))
+            val_items += [(d, int(i)) for i in val_idx]
+            train_items += [(d, int(i)) for i in fit_idx]
+        if not train_items:
+            raise ValueError("no training segments with a ground-truth box")
+
+        def load(items):
+            segs = [datasets[d].segment(i) for d, i in items]
+            return ([(s.events, s.t0_us, s.box) for s in segs],
+                    [(datasets[d].width, datasets[d].height) for d, _ in items])
+
+        model = build(cfg.network)
+        calib_items = [train_items[k] for k in rng.choice(len(train_items), min(8, len(train_items)), replace=False)]
+        calib_batch = segment_batch(*load(calib_items), rng, cfg.network)[0]  # drawn either way: same rng stream
+        calibrate = cfg.calibrate and hasattr(model, "calibrate")  # the ANN twin has no calibration
+        history_calibration = model.calibrate(calib_batch) if calibrate else None
+        opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+
+        val_pick = spread(val_items, cfg.val_segments)
+        val_rng = np.random.default_rng(cfg.seed + 1)
+        val_batch = segment_batch(*load(val_pick), val_rng, cfg.network) if val_pick else None
+
+        def step_loss(items: list) -> tuple[torch.Tensor, dict]:
+            loss, ops = training_loss(model, *segment_batch(*load(items), rng, cfg.network), cfg)
+            return loss, ({} if ops is None else {"train_ops_per_sample": ops})
+
+        history = fit(model, opt, train_items, cfg, rng, step_loss,
+                      (lambda: evaluate(model, *val_batch, cfg)) if val_batch is not None else None,
+                      lambda m: (f"val loss {m['loss']:.4f} acc {m['accuracy']:.3f} "
+                                 f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}"),
+                      {"train_loss": [], "val": [], "calibration": history_calibration}, progress, "train")
+        if val_batch is not None:
+            # a network whose target output never rises above 0 cannot track; with eq. 5 and no bias nothing
+            # revives it (no spike, no surrogate gradient), so say so rather than hand it on as trained
+            history["silent"] = history["val"][-1]["vmax_max"] <= 0.0
+        history.update(train_segments=len(train_items), val_segments=len(val_pick))
+        return model, history
+    finally:
+        for ds in datasets:
+            ds.close()
+
+
+def provenance(files: list[Path], cfg: TrainConfig, history: dict) -> dict:
+    """What made a checkpoint: data files (size, name, split), config, command, git commit, metrics."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).resolve().parent, timeout=5).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    data = []
+    for f in files:
+        with Dataset(f) as ds:
+            data.append({"file": str(f), "name": ds.name, "split": ds.split, "bytes": Path(f).stat().st_size,
+                         "events": ds.num_events, "segments": ds.num_segments})
+    return {"train_config": cfg.model_dump(), "data": data, "command": " ".join(sys.argv), "git_commit": commit,
+            "history": {k: v for k, v in history.items() if k != "train_loss"},
+            "train_loss_first_last": [history["train_loss"][0], history["train_loss"][-1]] if history["train_loss"] else None,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}

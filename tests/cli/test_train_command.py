@@ -1,0 +1,146 @@
+"""`dvsot train` refuses bad flags and bad outputs at once (exit 2, one line naming the flag or file), before any
+training, leaving no file behind; a tiny run still writes the checkpoint and its metadata."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from dvsot.cli import main
+from sctn.checkpoint import load_checkpoint
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from synthetic import moving_square_file  # noqa: E402
+
+torch.set_num_threads(1)
+TINY = ["--epochs", "1", "--segments-per-epoch", "2", "--batch-segments", "1", "--channels", "2", "2", "2",
+        "--fc", "4", "4", "--threads", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> Path:
+    """A small labelled dataset file (64x48, 60 ms)."""
+    d = tmp_path_factory.mktemp("train_data")
+    return moving_square_file(d / "syn.h5", width=64, height=48, size=12, duration_ms=60,
+                              velocity_px_s=(100.0, 40.0), start=(10.0, 10.0))
+
+
+@pytest.fixture
+def no_training(monkeypatch):
+    """Fail the test if training starts: every refusal must come before any work."""
+    def boom(*args, **kwargs):
+        raise AssertionError("training started")
+    monkeypatch.setattr("sctn.training.snn.train", boom)
+
+
+def snapshot(*dirs: Path) -> dict:
+    """Every file (dot files too) under dirs with its bytes."""
+    return {str(p): (p.read_bytes() if p.is_file() else None) for d in dirs for p in sorted(d.rglob("*"))}
+
+
+def assert_refused(argv, words, dirs, capsys) -> None:
+    """`dvsot train argv` exits 2 with one line holding every one of words, and no file under dirs changes."""
+    before = snapshot(*dirs)
+    assert main(["train", *argv]) == 2, argv
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), (argv, err)
+    assert snapshot(*dirs) == before, argv
+
+
+@pytest.mark.parametrize("flags, words", [
+    (["--threads=-1"], ["--threads", ">= 1", "-1"]),
+    (["--threads", "0"], ["--threads", ">= 1"]),
+    (["--lr", "nan"], ["--lr", "finite", "nan"]),
+    (["--lr", "inf"], ["--lr", "finite", "inf"]),
+    (["--lr", "-1"], ["--lr", "positive"]),
+    (["--max-minutes=-1"], ["--max-minutes", "positive", "-1"]),
+    (["--max-minutes", "0"], ["--max-minutes", "positive"]),
+    (["--max-minutes", "nan"], ["--max-minutes", "finite"]),
+    (["--max-minutes", "inf"], ["--max-minutes", "finite"]),
+    (["--ops-penalty", "inf"], ["--ops-penalty", "finite"]),
+    (["--ops-penalty", "nan"], ["--ops-penalty", ">= 0"]),
+    (["--seed=-1"], ["--seed", ">= 0"]),
+    (["--epochs", "0"], ["--epochs", ">= 1"]),
+    (["--segments-per-epoch=-3"], ["--segments-per-epoch", ">= 1"]),
+    (["--batch-segments", "0"], ["--batch-segments", ">= 1"]),
+])
+def test_bad_numeric_flags_name_the_flag(data, tmp_path, capsys, no_training, flags, words):
+    assert_refused(["--data", str(data), "-o", str(tmp_path / "m.pt"), *flags], words, [tmp_path, data.parent], capsys)
+
+
+def test_output_that_is_a_directory_is_refused_before_training(data, tmp_path, capsys, no_training):
+    (tmp_path / "adir").mkdir()
+    assert_refused(["--data", str(data), "-o", str(tmp_path / "adir"), "--quiet"], ["adir", "-o", "directory"],
+                   [tmp_path, data.parent], capsys)
+    (tmp_path / "m.json").mkdir()  # the metadata file's place
+    assert_refused(["--data", str(data), "-o", str(tmp_path / "m.pt"), "--quiet"], ["m.json", "directory"],
+                   [tmp_path, data.parent], capsys)
+
+
+def test_output_whose_metadata_would_replace_it_is_refused(data, tmp_path, capsys, no_training):
+    assert_refused(["--data", str(data), "-o", str(tmp_path / "ck.json"), "--quiet"], ["ck.json", "-o", ".json"],
+                   [tmp_path, data.parent], capsys)
+    (tmp_path / "old.json").write_text("{}")  # an existing output is kept too
+    assert_refused(["--data", str(data), "-o", str(tmp_path / "old.json"), "--quiet"], ["old.json", ".json"],
+                   [tmp_path, data.parent], capsys)
+
+
+def test_output_that_is_a_data_file_is_refused(data, tmp_path, capsys, no_training):
+    assert_refused(["--data", str(data), "-o", str(data), "--quiet"], ["syn.h5", "input"], [tmp_path, data.parent],
+                   capsys)
+    copy = tmp_path / "d.json"  # a data file in the metadata's place
+    copy.write_bytes(data.read_bytes())
+    assert_refused(["--data", str(copy), "--split", "any", "-o", str(tmp_path / "d.pt"), "--quiet"], ["d.json", "input"],
+                   [tmp_path, data.parent], capsys)
+
+
+def test_tiny_run_writes_the_checkpoint_and_its_metadata(data, tmp_path, capsys):
+    out = tmp_path / "m.pt"
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["checkpoint"] == str(out) and summary["steps"] == 2
+    model, meta = load_checkpoint(out)
+    assert model.cfg.channels == (2, 2, 2) and meta["train_config"]["lr"] == 2e-3
+    assert json.loads(out.with_suffix(".json").read_text())["train_config"]["epochs"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "m.pt"]
+
+
+def test_calibration_is_a_deviation_off_by_default(data, tmp_path, capsys):
+    """`dvsot train` trains the paper preset: no data-driven initial scale unless --calibrate asks for it."""
+    out = tmp_path / "m.pt"
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--calibrate"]) == 0
+    capsys.readouterr()
+    assert load_checkpoint(out)[1]["train_config"]["calibrate"] is True
+    from dvsot.cli import build_parser
+    assert build_parser().parse_args(["train"]).calibrate is None  # unset: TrainConfig's default (False)
+
+
+def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path, capsys, monkeypatch):
+    """Training that ends with a target output that never rises above 0 exits 1 naming the file; -o keeps its bytes."""
+    import sctn.training.snn
+    from sctn.network import SCTN, NetworkConfig
+
+    def dead(files, cfg, progress=True):
+        model = SCTN(NetworkConfig(channels=(2, 2, 2), fc=(4, 4)))
+        with torch.no_grad():
+            for p in model.parameters():
+                p.zero_()
+        with sctn.training.snn.Dataset(files[0]) as ds:
+            segs = [ds.segment(i) for i in sctn.training.snn.usable_segments(ds, cfg.min_box_px)[:2]]
+        x, iou, pos = sctn.training.snn.segment_batch([(s.events, s.t0_us, s.box) for s in segs], [(64, 48)] * len(segs),
+                                               np.random.default_rng(0), model.cfg)
+        final = sctn.training.snn.evaluate(model, x, iou, pos, cfg)
+        assert final["vmax_max"] == 0.0  # zero weights: no current, no voltage, on every sample
+        return model, {"val": [final], "silent": final["vmax_max"] <= 0, "steps": 0, "minutes": 0.0,
+                       "train_segments": 2, "val_segments": 2}
+
+    monkeypatch.setattr("dvsot.cli.train._trainer", lambda model: dead)
+    out = tmp_path / "m.pt"
+    out.write_bytes(b"a good checkpoint")
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(out) in err[0] and "silent" in err[0], err
+    assert out.read_bytes() == b"a good checkpoint" and sorted(p.name for p in tmp_path.iterdir()) == ["m.pt"]
