@@ -4,9 +4,8 @@ Public names (each imported on first use): `benchmark` (trackers x dataset files
 `run_sequence`, the tracker registry (`get_tracker`, `register`, `available_trackers`, `Tracker`), the
 metrics (`scores`, `pooled`, `ar_score`, `Scores`), `summarise` (results -> a typed `Summary` of `Cell`s,
 the tables' data; `summarise_ope` for one-pass runs), `write_report` (a run's tables,
-per-sequence files, pictures and manifest, written together; Table 3 from
-`benchmarks.analysis.energy_table.energy_table`), `find_sequences` (the files to run on) and
-`load_sctn_checkpoint`.
+per-sequence files, pictures and manifest, written together), `energy_table` (the paper's Table 3) and
+`find_sequences` (the files to run on). Checkpoints load through `sctn.load_checkpoint`.
 """
 
 from dvsot.lazy import lazy_attributes
@@ -30,7 +29,7 @@ _API = {
     "summarise_ope": "benchmarks.evaluation.ope",
     "write_report": "benchmarks.analysis.report",
     "find_sequences": "benchmarks.evaluation.runner",
-    "load_sctn_checkpoint": "benchmarks.evaluation.models",
+    "energy_table": "benchmarks.analysis.energy_table",
 }
 __all__ = list(_API)
 __getattr__, __dir__ = lazy_attributes(__name__, _API)

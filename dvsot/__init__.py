@@ -1,9 +1,12 @@
 """dvsot: synthesise event-camera (DVS) single-object-tracking datasets and benchmark trackers on them.
 
 The Python API (README, "Use it from Python"): `load_scene` -> `generate` renders a scene into a dataset
-file; `simulate_file` turns frames you have (images, video, .npy) into one, `EventSimulator` +
-`write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it, `dataset_info` sums it up. Each name
-is imported on first use, so `import dvsot` stays light (no torch, no bpy).
+file, `read_template` -> `draw_variants` makes scene variants and `generate_many` renders many scenes (from
+`variant_tasks` or `scene_tasks`); `simulate_file` turns frames you have (images, video, .npy) into one,
+`EventSimulator` + `write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it, `dataset_info` sums
+it up, `SegmentDataset` feeds PyTorch; `export_dataset` writes other tools' event files and `import_recording`
+reads them (with a recording's boxes). Each name is imported on first use, so `import dvsot` stays light (no
+torch, no bpy).
 """
 
 from dvsot.lazy import lazy_attributes
@@ -14,6 +17,11 @@ _API = {
     "load_scene": "dvsot.scene",
     "SceneConfig": "dvsot.scene",
     "generate": "dvsot.generate",
+    "generate_many": "dvsot.pipeline.many_scenes",
+    "variant_tasks": "dvsot.pipeline.many_scenes",
+    "scene_tasks": "dvsot.pipeline.many_scenes",
+    "read_template": "dvsot.scene.templates",
+    "draw_variants": "dvsot.scene.templates",
     "simulate_frames": "dvsot.pipeline.sequence",
     "write_sequence": "dvsot.pipeline.sequence",
     "simulate_file": "dvsot.pipeline.simulate",
@@ -24,6 +32,10 @@ _API = {
     "DatasetWriter": "dvsot.dataset",
     "find_datasets": "dvsot.dataset",
     "dataset_info": "dvsot.dataset.info",
+    "SegmentDataset": "dvsot.dataset.torchdata",
+    "export_dataset": "dvsot.interop.event_files",
+    "read_event_file": "dvsot.interop.event_files",
+    "import_recording": "dvsot.interop.recordings",
     "UserError": "dvsot.errors",
     "RunError": "dvsot.errors",
 }
