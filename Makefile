@@ -10,7 +10,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
-	# torch is pinned: 2.13.0 is the CPU build that lies on this machine's disk.
+	# torch is pinned to its CPU build: an unpinned torch pulls a CUDA build of several GB.
 	$(BIN)/pip install -q "torch==2.13.0" "numpy<2"
 	$(BIN)/pip install -q -e ".[test]"
 	touch $(STAMP)

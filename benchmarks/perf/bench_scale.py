@@ -20,7 +20,7 @@ rounds interleave the configurations, so a change of the machine's load hits all
   the round's mean). If it does not grow with the worker count the workers do not slow each other down and
   the wall-clock speed-up is bounded only by free cores; unlike run_s it holds on a loaded machine.
 - overhead_per_scene_s: (run_s - sum of the tasks' own times) / variants at 1 worker, shared threads: the
-  head's and the scheduler's time between tasks (goal < 0.5 s).
+  head's and the scheduler's time between tasks.
 - ceiling: 2 copies of a CPU-bound Python loop at once against 1 alone (per round): the best any 2-process
   speed-up can be on this machine at that moment (below 2 when other jobs hold the cores).
 - render_ceiling: the same for the task itself, without Dask: 2 plain processes each generating the
@@ -28,7 +28,7 @@ rounds interleave the configurations, so a change of the machine's load hits all
   once against 1 alone (per round). Cycles shares caches and memory bandwidth, which a Python loop does
   not: this is the 2-worker speed-up the machine allows for these scenes; one.2 against it is what the
   engine loses.
-Default task: 160x120 for 0.1 s (~45 frames), where rendering is ~80% of a scene's CPU; the issue's tiny
+Default task: 160x120 for 0.1 s (~45 frames), where rendering is ~80% of a scene's CPU; tiny
 80x60 50 ms variants (`--size 80x60 --duration 0.05`) spend about half of it in fixed per-scene costs.
 --project renders one variant of blender_scenes/templates/dvsot21_random.yaml at 640x480 for 0.05 s to measure
 the per-sequence setup and the seconds per frame, counts the frames of 20 drawn variants (sample times need
@@ -65,7 +65,7 @@ background:
   material: {{texture: {{type: noise, scale: 10}}}}
 sampling: {{min_rate_hz: 200}}
 """
-TINY = TEMPLATE.format(width=80, height=60, duration=0.05)  # the issue's tiny variants
+TINY = TEMPLATE.format(width=80, height=60, duration=0.05)  # tiny variants
 
 
 def run_batch(template: Path, variants: int, address: str, mode: str, out: Path) -> dict:

@@ -21,7 +21,7 @@ from pathlib import Path
 _HOST = re.sub(r"[^A-Za-z0-9.-]", "-", socket.gethostname() or "host")[:64] or "host"
 _NAME = re.compile(r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
                    r"(?P<suffix>\.[^.~]*)?$")
-_LEGACY = re.compile(r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$")  # dvsot's names before 2026-12-02
+_LEGACY = re.compile(r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$")  # the temp names of earlier dvsot versions
 
 
 def host() -> str:

@@ -1,4 +1,4 @@
-"""Bad data that used to pass (issue 14, item 9): box values and root attributes checked on open, empty files
+"""Bad data that used to pass: box values and root attributes checked on open, empty files
 refused for training; each through the command line, one line naming the file and field, exit status 2."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The right words (issue 14, item 13): a directory or FIFO is not "no such file", a bad format_version is
+"""The right words: a directory or FIFO is not "no such file", a bad format_version is
 not Python's int() message, and an interrupted run's progress bar is not redrawn under "interrupted"."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""No long silences (issue 14, item 14): a scene file's size is bounded (so is its copy in the dataset file),
+"""No long silences: a scene file's size is bounded (so is its copy in the dataset file),
 a scene file that would block is refused at once, and generate says what it does before its bar appears."""
 
 from __future__ import annotations

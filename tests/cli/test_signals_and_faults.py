@@ -1,4 +1,4 @@
-"""Faults driven as a user meets them (issue 14, items 1-8): real signals to a running command, SIGKILL of a
+"""Faults driven as a user meets them: real signals to a running command, SIGKILL of a
 parent with workers, a read-only directory, a full disk, symlinks and reused --keep-frames directories.
 
 Read-only directories and full disks are real mounts (tmpfs) when the tests run as root, since root

@@ -1,4 +1,4 @@
-"""What a file or a flag can make dvsot allocate is bounded, and the error names the bound (issue 14, item 11):
+"""What a file or a flag can make dvsot allocate is bounded, and the error names the bound:
 deep or alias-expanding YAML, tiny segments, rates and timestamps spanning days, huge sensors, fuzzed files."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""One source for each setting (issue 17): the tracker's typed settings, the trainers' budget, the one-line formatter."""
+"""One source for each setting: the tracker's typed settings, the trainers' budget, the one-line formatter."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""A dataset's name is free text (issue 14, item 10): `bench --video` writes inside --out whatever the name,
+"""A dataset's name is free text: `bench --video` writes inside --out whatever the name,
 and results.md / table.txt / results.tex keep one row per tracker and one column per sequence."""
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ def test_output_dir(tmp_path):
         output_dir(tmp_path / "f" / "sub", "--out-dir")
 
 
-# --- run-atomic outputs, temp names, stale temps (issue 14) ---
+# --- run-atomic outputs, temp names, stale temps ---
 
 import json
 import os

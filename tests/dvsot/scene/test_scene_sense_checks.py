@@ -1,4 +1,4 @@
-"""Scenes that validate but make no sense (issue 14, item 12): refused with the field and line, or warned
+"""Scenes that validate but make no sense: refused with the field and line, or warned
 about before anything is rendered (no Blender here: an output in a missing directory stops the run after)."""
 
 from __future__ import annotations
