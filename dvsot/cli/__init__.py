@@ -94,6 +94,3 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         interrupts.restore(saved)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

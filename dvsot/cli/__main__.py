@@ -1,0 +1,7 @@
+"""`python -m dvsot.cli`: the `dvsot` command."""
+
+import sys
+
+from dvsot.cli import main
+
+sys.exit(main())
