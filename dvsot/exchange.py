@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from dvsot.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.errors import UserError, exception_line
 
-# suffix -> format; .raw is EVT 3 unless told otherwise (evt_version)
+# suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
 EVT_VERSIONS = ("evt2", "evt3")
 _MAX_PIXELS = 1 << 16  # dataset files store x and y as u2
@@ -65,7 +66,7 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
 
 
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = "evt3", size_label: str = "size") -> EventFile:
+                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size") -> EventFile:
     """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
 
     size: (width, height) for files that do not say; messages name it as size_label."""
@@ -134,7 +135,7 @@ def check_events(ev: EventFile) -> None:
 
 
 def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-                     width: int, height: int, evt_version: str = "evt3") -> None:
+                     width: int, height: int, evt_version: str = EXPORT_EVT_VERSION) -> None:
     """Write events (t us >= 0 in time order, pixels, polarity 0/1) in the format of the path's suffix."""
     kind = event_format(path, "output")
     if kind in ("csv", "txt"):
@@ -170,8 +171,8 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
             fh.write(f"{sign}{ti // 1_000_000}.{ti % 1_000_000:06d}," + ",".join(f"{v:.9g}" for v in row) + "\n")
 
 
-def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike, evt_version: str = "evt3",
-                   boxes: bool = True) -> list[Path]:
+def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
+                   evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True) -> list[Path]:
     """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written."""
     from dvsot.dataset import Dataset
     from dvsot.outputs import replacing, run_outputs

@@ -27,7 +27,7 @@ import numpy as np
 
 from dvsot.errors import UserError, label
 from dvsot.exchange import EventFile, read_event_file
-from dvsot.defaults import SEGMENT_US
+from dvsot.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time
@@ -162,8 +162,8 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
 
 def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: str | os.PathLike | None = None,
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
-                     size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US, evt_version: str = "evt3",
-                     interpolate: bool = False, labels: Mapping[str, str] | None = None) -> Path:
+                     size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US,
+                     evt_version: str = IMPORT_EVT_VERSION, interpolate: bool = False, labels: Mapping[str, str] | None = None) -> Path:
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
 
     labels: how messages name the settings boxes, box_times and size (a command's flags)."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import argparse
 
-from dvsot.defaults import SEGMENT_US
+from dvsot.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,7 +31,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--size", help="sensor WIDTHxHEIGHT, for files that do not say (CSV, TXT without a size line)")
     p.add_argument("--segment-us", type=int, default=SEGMENT_US,
                    help=f"segment length, microseconds (default {SEGMENT_US})")
-    p.add_argument("--evt", choices=["2", "3"], default="3", help="EVT version of a .raw file without one in its header")
+    p.add_argument("--evt", choices=["2", "3"], default=IMPORT_EVT_VERSION.removeprefix("evt"),
+                   help="EVT version of a .raw file without one in its header (default "
+                        f"{IMPORT_EVT_VERSION.removeprefix('evt')})")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
