@@ -91,21 +91,144 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     return ev
 
 
+def _header(path: Path, kind: str, evt_version: str) -> tuple[tuple[int, int] | None, str | None]:
+    """(sensor size, DAT event type or EVT version) of an EVT or DAT header; the size is None when it has none.
+
+    faery's decoders put a fallback where the header has no size: two fallbacks that differ tell."""
+    from faery.extension import dat, evt
+
+    sizes, kind_of = [], None
+    for fallback in ((1, 1), (2, 2)):
+        if kind == "dat":
+            with dat.Decoder(path, fallback, "dat2") as decoder:
+                sizes.append(tuple(decoder.dimensions))
+                kind_of = decoder.event_type
+        else:
+            with evt.Decoder(path, fallback, evt_version) as decoder:
+                sizes.append(tuple(decoder.dimensions))
+                kind_of = decoder.version
+    return (sizes[0] if sizes[0] == sizes[1] else None), kind_of
+
+
+def _header_bytes(path: Path) -> int:
+    """The length of a Prophesee file's text header: its leading lines that start with '%'."""
+    with open(path, "rb") as fh:
+        n = 0
+        for line in fh:
+            if not line.startswith(b"%"):
+                break
+            n += len(line)
+    return n
+
+
+def evt3_time_problem(path: str | os.PathLike, words_per_chunk: int = 1 << 24) -> str | None:
+    """What in an EVT 3 file's time words faery 0.7 would decode to wrong times without a word, or None.
+
+    - Time-low words (12 bits, us) that wrap around with no time-high word between them. Prophesee's
+      EVT 3 writes a time-high word whenever bits 12-23 of the time change, so they never do; a writer
+      that leaves the time-high words out (expelliarmus 1.1 does) makes files that faery decodes with
+      every time stuck in the first 4096 us. A step back of more than half the period counts as a
+      wrap, so a few microseconds of jitter between events is not refused.
+    - A time-high word that wraps from below 4095 to 0 (the 24-bit time passing 2^24 us, 16.8 s, across
+      a gap of over 4 ms with no event, as sparse files written by faery have): faery notices the wrap
+      only after 4095 and decodes every later time as earlier ones; a camera writes every time-high."""
+    p = Path(path)
+    start = _header_bytes(p)
+    words = np.memmap(p, dtype="<u2", mode="r", offset=start, shape=((p.stat().st_size - start) // 2,))
+    last_low, last_high = -1, -1  # the previous time-low of this time-high period (-1 after a time-high word)
+    for i in range(0, len(words), words_per_chunk):
+        w = np.asarray(words[i:i + words_per_chunk])
+        kind = w >> 12
+        marks = np.flatnonzero((kind == 6) | (kind == 8))  # EVT_TIME_LOW, EVT_TIME_HIGH
+        low = np.where(kind[marks] == 6, (w[marks] & 0xFFF).astype(np.int64), -1)
+        before = np.concatenate([[last_low], low[:-1]])
+        bad = np.flatnonzero((low >= 0) & (before - low > 2048))
+        if len(bad):
+            k = int(bad[0])
+            return (f"time-low word {i + int(marks[k])} wraps from {before[k]} to {low[k]} us with no time-high "
+                    "word between them, which Prophesee's EVT 3 does not allow (expelliarmus writes such files; "
+                    "save them as EVT 2)")
+        highs = np.flatnonzero(kind == 8)
+        high = (w[highs] & 0xFFF).astype(np.int64)
+        prev = np.concatenate([[last_high], high[:-1]])
+        bad = np.flatnonzero((high < prev) & (prev != 0xFFF))
+        if len(bad):
+            k = int(bad[0])
+            return (f"time-high word {i + int(highs[k])} wraps from {prev[k]} to {high[k]} (the time passing "
+                    "2^24 us across a gap with no event), which faery, dvsot's EVT reader, decodes to wrong "
+                    "times; convert the file to EVT 2 (Metavision's metavision_file_to_raw, or dvsot export "
+                    "--evt 2 of a file read right)")
+        if len(low):
+            last_low = int(low[-1])
+        if len(high):
+            last_high = int(high[-1])
+    return None
+
+
+def _dat_2d_events(path: Path, size: tuple[int, int]) -> np.ndarray:
+    """The events of a DAT file of type 0x00 ("2D", as expelliarmus writes): the CD layout, polarity in the payload."""
+    from faery.extension import dat
+
+    with dat.Decoder(path, size, "dat2") as decoder:
+        parts = list(decoder)
+    a = np.concatenate(parts) if parts else np.empty(0, [("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("payload", "u1")])
+    out = np.empty(len(a), [("t", np.int64), ("x", np.uint16), ("y", np.uint16), ("on", np.uint8)])
+    out["t"], out["x"], out["y"], out["on"] = a["t"], a["x"], a["y"], a["payload"]
+    return out
+
+
 def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_version: str,
                      size_label: str = "size") -> EventFile:
     import faery
 
-    fallback = size or (1280, 720)
     try:
-        stream = faery.events_stream_from_file(path, dimensions_fallback=fallback, version_fallback=
-                                               evt_version if kind == "evt" else None)
-        width, height = stream.dimensions()
-        a = stream.to_array()
+        header_size, event_type = _header(path, kind, evt_version) if kind in ("evt", "dat") else (None, None)
     except Exception as exc:  # faery's decoders raise bare Exceptions with their own messages
         raise UserError(f"{path}: cannot read {kind.upper()} events ({exception_line(exc, kind=False)})") from None
-    if size is not None and (width, height) != tuple(size):
+    if event_type == "evt3":
+        problem = evt3_time_problem(path)
+        if problem:
+            raise UserError(f"{path}: {problem}")
+    if kind in ("evt", "dat") and header_size is None and size is None:
+        raise UserError(f"{path}: the {kind.upper()} header gives no sensor size; give {size_label} WIDTHxHEIGHT")
+    if header_size is not None and size is not None and header_size != tuple(size):
+        raise UserError(f"{path}: the file says {header_size[0]}x{header_size[1]} pixels, "
+                        f"{size_label} says {size[0]}x{size[1]}")
+    try:
+        if event_type == "2d":
+            width, height = header_size or size
+            a = _dat_2d_events(path, (width, height))
+        else:
+            stream = faery.events_stream_from_file(path, dimensions_fallback=header_size or size or (1, 1),
+                                                   version_fallback=evt_version if kind == "evt" else None)
+            width, height = stream.dimensions()
+            a = stream.to_array()
+    except Exception as exc:
+        raise UserError(f"{path}: cannot read {kind.upper()} events ({exception_line(exc, kind=False)})") from None
+    if size is not None and (width, height) != tuple(size):  # an AEDAT4 file's track
         raise UserError(f"{path}: the file says {width}x{height} pixels, {size_label} says {size[0]}x{size[1]}")
     return EventFile(a["t"].astype(np.int64), a["x"], a["y"], a["on"].astype(np.uint8), int(width), int(height), path)
+
+
+def frame_times(path: str | os.PathLike) -> np.ndarray:
+    """The timestamps (us, the file's clock) of the frames of an AEDAT4 file's first frame track, in file order."""
+    p = Path(path)
+    if event_format(p, "events file") != "aedat":
+        raise UserError(f"{p}: frame times come from an AEDAT4 file's frame track; this is not a .aedat4 file")
+    from faery.extension import aedat
+
+    try:
+        with aedat.Decoder(p) as decoder:
+            tracks = [t.id for t in decoder.tracks() if t.data_type == "frame"]
+            if not tracks:
+                raise UserError(f"{p}: the file has no frame track (tracks: "
+                                f"{', '.join(t.data_type for t in decoder.tracks()) or 'none'})")
+            times = [packet.t for track, packet in decoder if track.id == tracks[0]]
+    except UserError:
+        raise
+    except Exception as exc:
+        raise UserError(f"{p}: cannot read the AEDAT4 frame track ({exception_line(exc, kind=False)})") from None
+    return np.asarray(times, np.int64)
 
 
 def check_events(ev: EventFile) -> None:
