@@ -36,6 +36,11 @@ def test_the_dataset_follows_tonics_conventions(data):
     np.testing.assert_array_equal(events["p"], EVENTS[:, 3])
     np.testing.assert_array_equal(events["t"], EVENTS[:, 0])
     np.testing.assert_allclose(box, [20.0, 5.0, 10.0, 8.0])  # write_file's box at 20 ms
+    import pickle
+
+    framed = TonicDataset(data, transform=tonic.transforms.ToFrame(sensor_size=ds.sensor_size, n_time_bins=2))
+    clone = pickle.loads(pickle.dumps(framed))  # as DataLoader's workers get it
+    np.testing.assert_array_equal(clone[segment_item(clone, 1)][0], framed[segment_item(framed, 1)][0])
     joint = TonicDataset([data], transforms=lambda e, b: (len(e), b * 2))
     assert joint[segment_item(joint, 1)][0] == 6 and joint[segment_item(joint, 1)][1][0] == 40.0
 
