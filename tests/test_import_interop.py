@@ -58,7 +58,7 @@ def test_evt3_without_time_high_words_is_refused(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("n, duration_us, misread", [(60_000, 60_000_000, False), (5_000, 20_000_000, True)])
+@pytest.mark.parametrize("n, duration_us, misread", [(30_000, 20_000_000, False), (5_000, 20_000_000, True)])
 def test_evt3_time_high_wraps_faery_misreads_are_refused(tmp_path, capsys, n, duration_us, misread):
     from dvsot.exchange import evt3_time_problem, write_event_file
 
@@ -69,7 +69,7 @@ def test_evt3_time_high_wraps_faery_misreads_are_refused(tmp_path, capsys, n, du
                      evt_version="evt3")
     problem = evt3_time_problem(src)
     assert (problem is not None) == misread
-    assert evt3_time_problem(src, words_per_chunk=7) == problem  # state carried across chunks
+    assert evt3_time_problem(src, words_per_chunk=4_097) == problem  # state carried across chunks
     out = tmp_path / "seq.h5"
     if misread:  # faery would decode every time after the wrap wrong: refused, nothing written
         assert "time-high word" in problem and "wraps from 4094 to 0" in problem
@@ -137,3 +137,18 @@ def test_box_times_from_frames_errors(tmp_path, capsys):
                  "--box-times-from-frames", "-o", str(out)]) == 2
     one_error_line(capsys, str(raw), "not a .aedat4 file")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("words, where", [
+    ([0x8000 | 4094, 0x6000 | 5, 0x6000 | 4000, 0x8000 | 0], "time-high word 3 wraps from 4094 to 0"),
+    ([0x8000 | 1, 0x6000 | 4000, 0x2000 | 3, 0x6000 | 10], "time-low word 3 wraps from 4000 to 10"),
+    ([0x8000 | 4095, 0x6000 | 1, 0x6000 | 1, 0x6000 | 0, 0x8000 | 0, 0x6000 | 2], None),  # 1 us of jitter is fine
+])
+def test_evt3_time_words_by_hand(tmp_path, words, where):
+    from dvsot.exchange import evt3_time_problem
+
+    path = tmp_path / "hand.raw"
+    path.write_bytes(b"% evt 3.0\n% geometry 64x48\n" + np.array(words, "<u2").tobytes())
+    for chunk in (1, 2, 1 << 24):  # one word a chunk: every comparison crosses a chunk boundary
+        problem = evt3_time_problem(path, words_per_chunk=chunk)
+        assert (problem is None) if where is None else (where in problem), (chunk, problem)
