@@ -43,14 +43,14 @@ class EventBatch:
                           np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig)
 
     def to_structured(self) -> np.ndarray:
-        """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker), tonic's layout STRUCTURED_DTYPE."""
+        """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker): STRUCTURED_DTYPE."""
         out = np.empty(len(self), STRUCTURED_DTYPE)
         out["x"], out["y"], out["t"], out["p"] = self.x, self.y, self.t, self.p
         return out
 
     @staticmethod
     def from_structured(events: np.ndarray) -> "EventBatch":
-        """A batch from a structured array with fields x, y, t (microseconds) and p (0/1, -1/+1 or bool), as tonic gives."""
+        """A batch from a structured array x, y, t (microseconds), p (0/1, -1/+1 or bool), as tonic gives."""
         names = events.dtype.names or ()
         missing = [k for k in "xytp" if k not in names]
         if missing:

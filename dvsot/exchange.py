@@ -122,7 +122,7 @@ def _header_bytes(path: Path) -> int:
 
 
 def evt3_time_problem(path: str | os.PathLike, words_per_chunk: int = 1 << 24) -> str | None:
-    """What in an EVT 3 file's time words faery 0.7 would decode to wrong times without a word, or None.
+    """Why faery 0.7, the EVT reader here, would decode an EVT 3 file's times wrong (one line), or None.
 
     - Time-low words (12 bits, us) that wrap around with no time-high word between them. Prophesee's
       EVT 3 writes a time-high word whenever bits 12-23 of the time change, so they never do; a writer
@@ -156,8 +156,7 @@ def evt3_time_problem(path: str | os.PathLike, words_per_chunk: int = 1 << 24) -
             k = int(bad[0])
             return (f"time-high word {i + int(highs[k])} wraps from {prev[k]} to {high[k]} (the time passing "
                     "2^24 us across a gap with no event), which faery, dvsot's EVT reader, decodes to wrong "
-                    "times; convert the file to EVT 2 (Metavision's metavision_file_to_raw, or dvsot export "
-                    "--evt 2 of a file read right)")
+                    "times; convert the file to EVT 2 with the tool that wrote it")
         if len(low):
             last_low = int(low[-1])
         if len(high):
