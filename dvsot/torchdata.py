@@ -11,8 +11,9 @@
 An item is (events, box): the segment's events as a structured array with fields x, y, t, p
 (tonic's layout, `dvsot.events.STRUCTURED_DTYPE`; t in microseconds of the file's clock minus
 /t_offset; p signed, 1 brighter and 0 darker, as tonic's transforms expect) and its ground-truth
-box xywh (pixels, float32). `transform` maps the events (a tonic transform such as `tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works),
-`target_transform` the box. The object holds only paths and an index, so it pickles; each process
+box xywh (pixels, float32). `transform` maps the events (a tonic transform such as
+`tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works), `target_transform`
+the box. The object holds only paths and an index, so it pickles; each process
 opens the files it reads on first use and keeps them open (HDF5 handles must not cross a fork).
 No torch import at module level: DataLoader takes any object with __len__ and __getitem__, and only
 collate_segments, which builds tensors, imports torch. `dvsot.tonic_dataset.TonicDataset` adds tonic's
