@@ -172,7 +172,7 @@ class BlenderScene:
         cam_data.sensor_fit = "HORIZONTAL" if self.width >= self.height else "VERTICAL"
         cam_data.sensor_width = cfg.sensor.sensor_width_mm
         cam_data.sensor_height = cfg.sensor.sensor_width_mm
-        cam_data.lens = k.fx * cfg.sensor.sensor_width_mm / max(self.width, self.height)
+        cam_data.lens = cfg.sensor.lens_mm()  # the schema keeps it and the sensor size where Blender keeps them
         cam_data.shift_x = -(k.cx - self.width / 2) / max(self.width, self.height)
         cam_data.shift_y = (k.cy - self.height / 2) / max(self.width, self.height)
         cam_data.clip_start, cam_data.clip_end = 0.01, 1e5
