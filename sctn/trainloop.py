@@ -121,7 +121,7 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
             loss, extra = batch_loss([items[k] for k in order[b:b + cfg.batch_segments]])
             if not bool(torch.isfinite(loss.detach()).all()):  # diverged: every later step and the weights are lost
                 bar.close()
-                raise RunError(f"{desc}: training diverged at step {step + 1} (epoch {epoch + 1}): the loss is "
+                raise RunError(f"training diverged at step {step + 1} (epoch {epoch + 1}): the loss is "
                                f"{float(loss.detach())} (a learning rate of {cfg.lr:g} may be too large)")
             opt.zero_grad()
             loss.backward()
