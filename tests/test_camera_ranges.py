@@ -30,6 +30,7 @@ render: {{threads: 1}}
     ("focal_mm: 4, sensor_width_mm: 0.9", ["sensor.sensor_width_mm", "got 0.9"]),
     ("fx: 3", ["'sensor'", "fx must be between 4.444", "px", "sensor_width_mm 36", "got 3"]),
     ("fx: 30, sensor_width_mm: 2", ["'sensor'", "fx must be between 80 and", "got 30"]),
+    ("fx: 100, cy: -1e39", ["sensor.cy", "between -3.403e+38 and 3.403e+38 px", "got -1e+39"]),
 ])
 def test_a_camera_blender_would_clamp_is_refused_naming_the_field_and_range(tmp_path, capsys, lens, words):
     scene = tmp_path / "s.yaml"

@@ -48,7 +48,7 @@ class Sensor(Strict):
     sensor_width_mm: Float = 36.0  # CAMERA_MM
     fx: Float | None = Field(None, gt=0, description="focal length in pixels (overrides focal_mm)")
     fy: Float | None = Field(None, gt=0, description="must equal fx: square pixels")
-    cx: Float | None = None
+    cx: Float | None = None  # pixels, within float32's range (_principal_point)
     cy: Float | None = None
 
     @field_validator("focal_mm", "sensor_width_mm")
@@ -57,6 +57,16 @@ class Sensor(Strict):
         problem = None if value is None else _camera_mm_problem(value)
         if problem:
             raise ValueError(problem)
+        return value
+
+    @field_validator("cx", "cy")
+    @classmethod
+    def _principal_point(cls, value: float | None) -> float | None:
+        # Blender stores the principal point as a float32 camera shift, (c - size / 2) / max side, clamped to
+        # float32's range; within +-float32 max pixels the shift always fits
+        if value is not None and abs(value) > CAMERA_MM[1]:
+            raise ValueError(f"must be between {-CAMERA_MM[1]:.4g} and {CAMERA_MM[1]:.4g} px (Blender's camera "
+                             f"shift is a 32-bit float), got {value:g}")
         return value
 
     @model_validator(mode="after")
