@@ -18,44 +18,11 @@ from dvsot.validate import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
-
-
 DIGEST_KEY = "weights_sha256"  # the metadata field (in the .pt and its .json) holding weights_digest of the weights
 
 
 class LegacyLayoutWarning(UserWarning):
     """A checkpoint whose network is not the paper preset (biases, tail steps or other steps)."""
-
-
-class UndigestedCheckpointWarning(UserWarning):
-    """A checkpoint written before weight digests: only its zip CRCs can be checked."""
-
-
-def weights_digest(state: Mapping[str, torch.Tensor]) -> str:
-    """SHA-256 (hex) of a state dict: every tensor's name, dtype, shape and bytes, in name order."""
-    h = hashlib.sha256()
-    for name in sorted(state):
-        t = state[name].detach().cpu().contiguous()
-        h.update(f"{name}\0{t.dtype}\0{tuple(t.shape)}\0".encode())
-        h.update(t.view(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
-    return h.hexdigest()
-
-
-def non_finite_weights(state: Mapping[str, torch.Tensor]) -> list[tuple[str, int]]:
-    """(name, count) of every floating-point tensor of a state dict holding NaN or infinite values."""
-    bad = []
-    for name, t in state.items():
-        if torch.is_floating_point(t):
-            n = int((~torch.isfinite(t)).sum())
-            if n:
-                bad.append((name, n))
-    return bad
-
-
-def _non_finite_text(bad: list[tuple[str, int]]) -> str:
-    """'N non-finite values (NaN or inf) in a, b, ...' for non_finite_weights' list."""
-    names = ", ".join(name for name, _ in bad[:3]) + (f" and {len(bad) - 3} more" if len(bad) > 3 else "")
-    return f"{sum(n for _, n in bad)} non-finite values (NaN or inf) in {names}"
 
 
 def layout_note(cfg: NetworkConfig) -> str | None:
@@ -90,6 +57,37 @@ def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", i
         raise UserError(f"{p}: {flag} must not end in .json: the checkpoint's metadata is written to {meta.name}")
     output_file(meta, f"{flag} (its metadata file)", inputs)
     return p
+
+
+class UndigestedCheckpointWarning(UserWarning):
+    """A checkpoint written before weight digests: only its zip CRCs can be checked."""
+
+
+def weights_digest(state: Mapping[str, torch.Tensor]) -> str:
+    """SHA-256 (hex) of a state dict: every tensor's name, dtype, shape and bytes, in name order."""
+    h = hashlib.sha256()
+    for name in sorted(state):
+        t = state[name].detach().cpu().contiguous()
+        h.update(f"{name}\0{t.dtype}\0{tuple(t.shape)}\0".encode())
+        h.update(t.view(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+    return h.hexdigest()
+
+
+def non_finite_weights(state: Mapping[str, torch.Tensor]) -> list[tuple[str, int]]:
+    """(name, count) of every floating-point tensor of a state dict holding NaN or infinite values."""
+    bad = []
+    for name, t in state.items():
+        if torch.is_floating_point(t):
+            n = int((~torch.isfinite(t)).sum())
+            if n:
+                bad.append((name, n))
+    return bad
+
+
+def _non_finite_text(bad: list[tuple[str, int]]) -> str:
+    """'N non-finite values (NaN or inf) in a, b, ...' for non_finite_weights' list."""
+    names = ", ".join(name for name, _ in bad[:3]) + (f" and {len(bad) - 3} more" if len(bad) > 3 else "")
+    return f"{sum(n for _, n in bad)} non-finite values (NaN or inf) in {names}"
 
 
 def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: dict, kind: str = "sctn") -> Path:
