@@ -17,7 +17,7 @@ from dvsot.config import SceneConfig
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
 from dvsot.lazy import callable_module
-from dvsot.outputs import run_outputs
+from dvsot.outputs import run_outputs, writing
 from dvsot.sampling import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.shapes import mesh_for, sample_points
 from dvsot.simulation import write_sequence
@@ -162,7 +162,8 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                     if i == 0:
                         first_s = render_s
                     if keep:
-                        np.save(keep / f"{i:06d}.npy", luma)
+                        with writing(keep_frames):  # a full disk: one line naming --keep-frames
+                            np.save(keep / f"{i:06d}.npy", luma)
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
                     yield luma
