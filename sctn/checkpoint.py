@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import warnings
+import zipfile
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 import torch
 
-from dvsot.errors import UserError, exception_line
+from dvsot.errors import RunError, UserError, exception_line
 from dvsot.runtime.outputs import replacing, run_outputs
 from dvsot.limits import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
+DIGEST_KEY = "weights_sha256"  # the metadata field (in the .pt and its .json) holding weights_digest of the weights
 
 
 class LegacyLayoutWarning(UserWarning):
@@ -56,18 +59,53 @@ def check_checkpoint_output(path: str | os.PathLike, flag: str = "checkpoint", i
     return p
 
 
+class UndigestedCheckpointWarning(UserWarning):
+    """A checkpoint written before weight digests: only its zip CRCs can be checked."""
+
+
+def weights_digest(state: Mapping[str, torch.Tensor]) -> str:
+    """SHA-256 (hex) of a state dict: every tensor's name, dtype, shape and bytes, in name order."""
+    h = hashlib.sha256()
+    for name in sorted(state):
+        t = state[name].detach().cpu().contiguous()
+        h.update(f"{name}\0{t.dtype}\0{tuple(t.shape)}\0".encode())
+        h.update(t.view(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+    return h.hexdigest()
+
+
+def non_finite_weights(state: Mapping[str, torch.Tensor]) -> list[tuple[str, int]]:
+    """(name, count) of every floating-point tensor of a state dict holding NaN or infinite values."""
+    bad = []
+    for name, t in state.items():
+        if torch.is_floating_point(t):
+            n = int((~torch.isfinite(t)).sum())
+            if n:
+                bad.append((name, n))
+    return bad
+
+
+def _non_finite_text(bad: list[tuple[str, int]]) -> str:
+    """'N non-finite values (NaN or inf) in a, b, ...' for non_finite_weights' list."""
+    names = ", ".join(name for name, _ in bad[:3]) + (f" and {len(bad) - 3} more" if len(bad) > 3 else "")
+    return f"{sum(n for _, n in bad)} non-finite values (NaN or inf) in {names}"
+
+
 def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: dict, kind: str = "sctn") -> Path:
     """Write weights, config and metadata, plus a .json of the metadata: both new or both old (one run's pair).
 
-    Both files carry the same `run` id (the .pt in its metadata), so a reader can tell they belong together.
+    Both files carry the same `run` id (the .pt in its metadata), so a reader can tell they belong together, and
+    the weights' digest (weights_digest), which read_checkpoint checks. Non-finite weights are refused (RunError).
     `kind` names the model the file holds (sctn, sctn_ann, siamfc): its format is "<kind>-checkpoint", so a
     checkpoint given to another model is refused naming what it holds (read_checkpoint).
     """
     p = check_checkpoint_output(path)
     meta_path = metadata_path(p)
     state = {k: v.detach().to(torch.float32).clone() for k, v in model.state_dict().items()}
+    bad = non_finite_weights(state)
+    if bad:  # a diverged training: such weights score nothing, and -o keeps what it held
+        raise RunError(f"{p}: not written: the weights hold {_non_finite_text(bad)}")
     with run_outputs() as run:  # renamed together when both are complete (dvsot.runtime.outputs)
-        meta = {**meta, "run": run.run_id}
+        meta = {**meta, "run": run.run_id, DIGEST_KEY: weights_digest(state)}
         with replacing(p) as tmp, open(tmp, "wb") as f:  # a file object: a full disk is an OSError, not torch's
             torch.save({"format": f"{kind}-checkpoint", "version": 1, "config": model.cfg.model_dump(),
                         "state_dict": state, "meta": meta}, f)
@@ -77,16 +115,61 @@ def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: dict,
     return p
 
 
+def _zip_damage(p: Path) -> str | None:
+    """The first member of a zip-format .pt whose CRC does not match its bytes (torch.load does not check), if any."""
+    if not zipfile.is_zipfile(p):
+        return None  # torch's legacy format: torch.load checks it
+    try:
+        with zipfile.ZipFile(p) as z:
+            return z.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError):
+        return None  # a damaged directory: torch.load refuses the file
+
+
+def _expected_digest(p: Path, meta: dict) -> str | None:
+    """The weights' digest a checkpoint states: in its metadata, else in the .json of the same run beside it."""
+    if isinstance(meta.get(DIGEST_KEY), str):
+        return meta[DIGEST_KEY]
+    try:  # a checkpoint written before digests whose digest was derived later into its .json (shipped ones)
+        side = json.loads(metadata_path(p).read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    if isinstance(side, dict) and side.get("run") == meta.get("run") and isinstance(side.get(DIGEST_KEY), str):
+        return side[DIGEST_KEY]
+    return None
+
+
+def check_weights(p: Path, blob: dict, label: str) -> None:
+    """UserError naming the file unless the stored weights are tensors, finite and match their stated digest; a
+    checkpoint stating none (written before digests) passes with an UndigestedCheckpointWarning."""
+    state = blob.get("state_dict")
+    if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
+        raise UserError(f"{p}: not a usable {label} checkpoint (its state_dict is not a set of tensors)")
+    meta = blob.get("meta") if isinstance(blob.get("meta"), dict) else {}
+    expected = _expected_digest(p, meta)
+    if expected is not None and weights_digest(state) != expected:
+        raise UserError(f"{p}: damaged {label} checkpoint: its weights do not match their {DIGEST_KEY} digest")
+    bad = non_finite_weights(state)
+    if bad:
+        raise UserError(f"{p}: not a usable {label} checkpoint: its weights hold {_non_finite_text(bad)}")
+    if expected is None:
+        warnings.warn(f"{p}: no {DIGEST_KEY} digest (written before digests): only its zip CRCs are checked",
+                      UndigestedCheckpointWarning, stacklevel=3)
+
+
 def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str = "a") -> dict:
-    """The stored dict of a `kind` checkpoint (format "<kind>-checkpoint"); UserError naming the file otherwise,
-    and the model it holds when it is another dvsot model's checkpoint. `label` (after `article`) names the
-    model in messages."""
+    """The stored dict of a `kind` checkpoint (format "<kind>-checkpoint") with intact, finite weights (its zip
+    CRCs and weight digest checked: check_weights); UserError naming the file otherwise, and the model it holds
+    when it is another dvsot model's checkpoint. `label` (after `article`) names the model in messages."""
     p = Path(path)
     kind_problem = file_kind_problem(p)  # before torch.load: a FIFO would block it, a directory is no checkpoint
     if kind_problem == "no such file":
         raise UserError(f"{p}: no such checkpoint")
     if kind_problem:
         raise UserError(f"{p}: {kind_problem}, not a checkpoint file")
+    damaged = _zip_damage(p)
+    if damaged:
+        raise UserError(f"{p}: damaged {label} checkpoint: {damaged} does not match its zip CRC")
     try:
         blob = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several kinds for damaged files
@@ -97,6 +180,7 @@ def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str
         if held:
             raise UserError(f"{p}: holds a {held} model, not {article} {label} one (a checkpoint of the {held} tracker)")
         raise UserError(f"{p}: not {article} {label} checkpoint")
+    check_weights(p, blob, label)
     return blob
 
 

@@ -1,12 +1,15 @@
-"""Per-sequence result files other toolkits read: OTB/pytracking boxes, VOT trajectories, per-segment times.
+"""Per-sequence result files other toolkits read: OTB/pytracking boxes, GOT-10k and VOT layouts, per-segment times.
 
 For every tracker and sequence of a run, in `<out>/<tracker>/` (names made safe as file names):
 
-- `<sequence>.txt`: one `x,y,w,h` line per segment (pixels, top-left corner), OTB / GOT-10k /
-  pytracking style; the ground truth at initialisation segments, `nan,nan,nan,nan` where the tracker
-  was not asked (segments skipped for want of ground truth).
+- `<sequence>.txt`: one `x,y,w,h` line per segment (pixels, top-left corner), the OTB layout that
+  got10k's ExperimentOTB and pytracking read; the ground truth at initialisation segments,
+  `nan,nan,nan,nan` where the tracker was not asked (segments skipped for want of ground truth).
 - `times/<sequence>_time.txt`: one line per segment, the seconds the tracker spent on it (init or
   update), `nan` where it was not asked (where got10k's ExperimentOTB looks for per-frame times).
+- `<sequence>/<sequence>_001.txt` and `<sequence>/<sequence>_time.txt` (one-pass protocol only): the
+  same boxes and times in GOT-10k's own layout (got10k's ExperimentGOT10k: repetition 001 of a
+  deterministic tracker); a re-initialising run is not one GOT-10k evaluates.
 - `baseline/<sequence>/<sequence>_001.txt` (re-initialising protocol only): the VOT toolkit's
   trajectory, one line per segment: `1` where the tracker was initialised, `2` where it failed
   (IoU < 0.5; re-initialised on the next segment), `0` where it was not asked, else `x,y,w,h`.
@@ -59,11 +62,14 @@ def time_text(result: SequenceResult) -> str:
 
 
 def result_paths(out_dir: Path, tracker: str, sequence: str, vot: bool) -> dict[str, Path]:
-    """The files one tracker's run on one sequence writes, by kind (otb, time, vot)."""
+    """The files one tracker's run on one sequence writes, by kind: otb, time, and vot (re-initialising run)
+    or got10k and got10k_time (one-pass run)."""
     d, s = Path(out_dir) / file_stem(tracker), file_stem(sequence)
     paths = {"otb": d / f"{s}.txt", "time": d / "times" / f"{s}_time.txt"}
     if vot:
         paths["vot"] = d / "baseline" / s / f"{s}_001.txt"
+    else:
+        paths["got10k"], paths["got10k_time"] = d / s / f"{s}_001.txt", d / s / f"{s}_time.txt"
     return paths
 
 
@@ -76,8 +82,10 @@ def write_sequence_files(results: list[SequenceResult], out_dir: str | Path, vot
         if r.error is not None:  # a crashed run has no trajectory to give; the tables mark it failed
             continue
         paths = result_paths(out_dir, r.tracker, r.sequence, vot)
-        texts = {"otb": otb_text(r), "time": time_text(r), "vot": vot_text(r) if vot else ""}
-        for kind, path in paths.items():
+        texts = {"otb": otb_text(r), "time": time_text(r)}
+        texts.update({"vot": vot_text(r)} if vot else {"got10k": texts["otb"], "got10k_time": texts["time"]})
+        # a sequence named "times" has one time file in both layouts, with the same text
+        for path, kind in {path: kind for kind, path in paths.items()}.items():
             path.parent.mkdir(parents=True, exist_ok=True)
             written.append(write_text_atomic(path, texts[kind]))
         asked = len(r.init_segments) + r.tracked_segments

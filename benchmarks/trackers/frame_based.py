@@ -9,10 +9,16 @@ default parameters (opencv-contrib 4.11, `cv2.TrackerCSRT_create` etc.).
 Per segment: frame = ATSLTD of the segment's events (3 channels, divisor = the segment's length);
 `init` initialises the OpenCV tracker with the ground-truth box on the init segment's frame;
 `update` returns the tracker's box, or the previous box when the tracker reports a loss.
+
+OpenCV's trackers draw from process-wide random state: MIL picks its Haar features with the C library's `rand()`,
+and `cv::theRNG()` is shared by everything in a thread. Every `init` seeds both (`OPENCV_SEED`), so a result depends
+on the sequence alone, not on which trackers ran before in the same worker.
 """
 
 from __future__ import annotations
 
+import ctypes
+import threading
 from typing import Callable
 
 import cv2
@@ -22,6 +28,16 @@ from benchmarks.evaluation.atsltd import atsltd_frame_bgr
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
+
+OPENCV_SEED = 0  # the seed of the random state every OpenCV tracker starts from at each (re-)initialisation
+_LIBC = ctypes.CDLL(None)  # the process's C library: the rand() OpenCV's MIL calls
+_SEEDED_INIT = threading.Lock()  # rand() is one state per process: seeding and drawing from it are not interleaved
+
+
+def reseed_opencv(seed: int = OPENCV_SEED) -> None:
+    """Seed the random state OpenCV's trackers draw from: the C library's rand() and this thread's cv::theRNG()."""
+    _LIBC.srand(ctypes.c_uint(seed))
+    cv2.setRNGSeed(seed)
 
 
 def _opencv_rect(box_xywh: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
@@ -59,8 +75,11 @@ class OpenCVFrameTracker(Tracker):
         if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
             raise ValueError(f"{self.name}: cannot initialise on an absent or empty box {box.tolist()}")
         self._width, self._height = int(width), int(height)
-        self._tracker = type(self).factory()
-        self._tracker.init(self._frame(segment), _opencv_rect(box, self._width, self._height))
+        frame = self._frame(segment)
+        with _SEEDED_INIT:
+            reseed_opencv()
+            self._tracker = type(self).factory()
+            self._tracker.init(frame, _opencv_rect(box, self._width, self._height))
         self._box = box.copy()
 
     def update(self, segment: Segment) -> np.ndarray:

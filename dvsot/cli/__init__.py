@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
 import warnings
 
@@ -67,6 +69,14 @@ def _one_line_warnings(prog: str) -> None:
     warnings.showwarning = show
 
 
+def _stdout_closed() -> int:
+    """The reader of stdout has gone: say nothing more, and exit as a tool killed by SIGPIPE does (128 + 13)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())  # Python's final flush of the unwritten rest then goes nowhere
+    os.close(devnull)
+    return 128 + signal.SIGPIPE
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
     parser = build_parser()
@@ -74,7 +84,11 @@ def main(argv: list[str] | None = None) -> int:
     saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
     _one_line_warnings(f"dvsot {args.command}")
     try:
-        return int(args._run(args) or 0)
+        status = int(args._run(args) or 0)
+        sys.stdout.flush()  # a reader that closed the pipe (`| head -1`) shows here, not at interpreter exit
+        return status
+    except BrokenPipeError:
+        return _stdout_closed()
     except UserError as exc:
         _close_progress_bars()  # a bar left open would redraw itself under the message at exit
         print(f"dvsot {args.command}: error: {exc}", file=sys.stderr)

@@ -1,13 +1,13 @@
 """Write a dataset file's events to a file other event-camera tools read, with its box track beside it as CSV.
 
-The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 3, or EVT 2 with --evt 2),
+The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 2, or EVT 3 with --evt 3),
 .dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds), .txt (rpg/ESIM: first line "width
 height", then "t x y p" with t in seconds). Timestamps are the recording's own clock (t + /t_offset).
 The boxes go to OUT.boxes.csv as t_s,x,y,w,h (nan = no target), which `dvsot import --boxes` reads.
 
 Examples:
   dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.aedat4
-  dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.raw --evt 2
+  dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.raw --evt 3
 """
 
 from __future__ import annotations
@@ -19,7 +19,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot export`."""
     p.add_argument("file", help="dataset file (.h5)")
     p.add_argument("-o", "--output", required=True, help="events file to write: .aedat4, .raw, .dat, .csv or .txt")
-    p.add_argument("--evt", choices=["2", "3"], default="3", help="EVT version of a .raw file (default 3)")
+    from dvsot.defaults import EXPORT_EVT_VERSION
+
+    default = EXPORT_EVT_VERSION.removeprefix("evt")
+    p.add_argument("--evt", choices=["2", "3"], default=default,
+                   help=f"EVT version of a .raw file (default {default}: expelliarmus misreads EVT 3 times)")
     p.add_argument("--no-boxes", action="store_true", help="do not write OUT.boxes.csv")
 
 

@@ -5,16 +5,19 @@
 
     data = SegmentDataset("data/dvsot21", split="train", transform=my_transform)
     loader = DataLoader(data, batch_size=8, shuffle=True, num_workers=2, collate_fn=collate_segments)
-    for events, boxes in loader:      # a list of structured (x, y, t, p) arrays, boxes (B, 4) float32
+    for events, boxes in loader:      # a list of structured (x, y, t, p) arrays, boxes a (B, 4) float32 tensor
         ...
 
 An item is (events, box): the segment's events as a structured array with fields x, y, t, p
 (tonic's layout, `dvsot.events.STRUCTURED_DTYPE`; t in microseconds of the file's clock minus
-/t_offset) and its ground-truth box xywh (pixels, float32). `transform` maps the events (a tonic
-transform such as `tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works),
-`target_transform` the box. The object holds only paths and an index, so it pickles; each process
+/t_offset; p signed, 1 brighter and 0 darker, as tonic's transforms expect) and its ground-truth
+box xywh (pixels, float32). `transform` maps the events (a tonic transform such as
+`tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works), `target_transform`
+the box. The object holds only paths and an index, so it pickles; each process
 opens the files it reads on first use and keeps them open (HDF5 handles must not cross a fork).
-No torch import here: DataLoader takes any object with __len__ and __getitem__.
+No torch import at module level: DataLoader takes any object with __len__ and __getitem__, and only
+collate_segments, which builds tensors, imports torch. `dvsot.dataset.tonic_dataset.TonicDataset` adds tonic's
+dataset attributes (ordering, dtype, transforms).
 """
 
 from __future__ import annotations
@@ -96,7 +99,20 @@ class SegmentDataset:
         self._open = {}
 
 
-def collate_segments(batch: list[tuple[Any, Any]]) -> tuple[list, np.ndarray]:
-    """DataLoader collate_fn: events as a list (segments differ in length), boxes stacked to (B, 4) float32."""
-    events = [e for e, _ in batch]
-    return events, np.stack([np.asarray(b, np.float32) for _, b in batch])
+def collate_segments(batch: list[tuple[Any, Any]]) -> tuple[Any, Any]:
+    """DataLoader collate_fn: boxes as a (B, 4) float32 tensor (pixels); events stacked to one tensor when every
+    item is a numeric array or tensor of one shape (a transform's frames or voxel grids), else a list (structured
+    events differ in length and torch holds no structured arrays; numeric ones become tensors)."""
+    import torch
+
+    def tensor(value: Any) -> Any:
+        if isinstance(value, torch.Tensor):
+            return value
+        a = np.asarray(value)
+        return torch.from_numpy(np.ascontiguousarray(a)) if a.dtype.kind in "biuf" else value
+
+    events = [tensor(e) for e, _ in batch]
+    if events and all(isinstance(e, torch.Tensor) and e.shape == events[0].shape for e in events):
+        events = torch.stack(events)
+    boxes = [b if isinstance(b, torch.Tensor) else torch.as_tensor(np.asarray(b, np.float32)) for _, b in batch]
+    return events, torch.stack(boxes)

@@ -99,7 +99,7 @@ class DatasetWriter:
             self.abort()
             from dvsot.runtime.outputs import disk_error
 
-            reason = disk_error(exc)
+            reason = None if isinstance(exc, RunError) else disk_error(exc)  # a RunError names its own output
             if reason is not None:  # a full disk: one line naming the output, not h5py's traceback
                 raise RunError(f"{self.path}: cannot write ({reason}); nothing was replaced") from None
 

@@ -6,8 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# tonic's structured event layout (fields x, y, t, p), with dvsot's column types
-STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)])
+# tonic's structured event layout (fields x, y, t, p). p is signed (i1) with tonic's values 0 (darker) and
+# 1 (brighter): ToFrame indexes its polarity channels by p, and ToVoxelGrid rewrites 0 to -1 in place,
+# which an unsigned p turns into 255. Files keep DSEC's unsigned 1/0.
+STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.int8)])
 
 
 @dataclass(frozen=True)
@@ -41,20 +43,26 @@ class EventBatch:
                           np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig)
 
     def to_structured(self) -> np.ndarray:
-        """The events as one structured array with fields x, y, t, p (tonic's layout; dtype STRUCTURED_DTYPE)."""
+        """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker): STRUCTURED_DTYPE."""
         out = np.empty(len(self), STRUCTURED_DTYPE)
         out["x"], out["y"], out["t"], out["p"] = self.x, self.y, self.t, self.p
         return out
 
     @staticmethod
     def from_structured(events: np.ndarray) -> "EventBatch":
-        """A batch from a structured array with fields x, y, t (microseconds) and p (0/1 or bool), as tonic gives."""
+        """A batch from a structured array x, y, t (microseconds), p (0/1, -1/+1 or bool), as tonic gives."""
         names = events.dtype.names or ()
         missing = [k for k in "xytp" if k not in names]
         if missing:
             raise ValueError(f"structured events need fields x, y, t, p; missing {', '.join(missing)}")
+        p = np.asarray(events["p"])
+        if p.dtype.kind != "b":
+            bad = (p != 0) & (p != 1) & (p != -1)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"structured events: field p of event {i} is {p[i]}, expected 0/1 or -1/+1")
         return EventBatch(events["x"].astype(np.uint16), events["y"].astype(np.uint16),
-                          events["t"].astype(np.int64), events["p"].astype(np.uint8))
+                          events["t"].astype(np.int64), (p > 0).astype(np.uint8))
 
     def select(self, mask_or_index: np.ndarray) -> "EventBatch":
         """The events picked by a boolean mask or an index array."""

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from dvsot.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.errors import UserError, exception_line
 
-# suffix -> format; .raw is EVT 3 unless told otherwise (evt_version)
+# suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
 EVT_VERSIONS = ("evt2", "evt3")
 _MAX_PIXELS = 1 << 16  # dataset files store x and y as u2
@@ -65,7 +66,7 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
 
 
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = "evt3", size_label: str = "size") -> EventFile:
+                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size") -> EventFile:
     """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
 
     size: (width, height) for files that do not say; messages name it as size_label."""
@@ -90,21 +91,143 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     return ev
 
 
+def _header(path: Path, kind: str, evt_version: str) -> tuple[tuple[int, int] | None, str | None]:
+    """(sensor size, DAT event type or EVT version) of an EVT or DAT header; the size is None when it has none.
+
+    faery's decoders put a fallback where the header has no size: two fallbacks that differ tell."""
+    from faery.extension import dat, evt
+
+    sizes, kind_of = [], None
+    for fallback in ((1, 1), (2, 2)):
+        if kind == "dat":
+            with dat.Decoder(path, fallback, "dat2") as decoder:
+                sizes.append(tuple(decoder.dimensions))
+                kind_of = decoder.event_type
+        else:
+            with evt.Decoder(path, fallback, evt_version) as decoder:
+                sizes.append(tuple(decoder.dimensions))
+                kind_of = decoder.version
+    return (sizes[0] if sizes[0] == sizes[1] else None), kind_of
+
+
+def _header_bytes(path: Path) -> int:
+    """The length of a Prophesee file's text header: its leading lines that start with '%'."""
+    with open(path, "rb") as fh:
+        n = 0
+        for line in fh:
+            if not line.startswith(b"%"):
+                break
+            n += len(line)
+    return n
+
+
+def evt3_time_problem(path: str | os.PathLike, words_per_chunk: int = 1 << 24) -> str | None:
+    """Why faery 0.7, the EVT reader here, would decode an EVT 3 file's times wrong (one line), or None.
+
+    - Time-low words (12 bits, us) that wrap around with no time-high word between them. Prophesee's
+      EVT 3 writes a time-high word whenever bits 12-23 of the time change, so they never do; a writer
+      that leaves the time-high words out (expelliarmus 1.1 does) makes files that faery decodes with
+      every time stuck in the first 4096 us. A step back of more than half the period counts as a
+      wrap, so a few microseconds of jitter between events is not refused.
+    - A time-high word that wraps from below 4095 to 0 (the 24-bit time passing 2^24 us, 16.8 s, across
+      a gap of over 4 ms with no event, as sparse files written by faery have): faery notices the wrap
+      only after 4095 and decodes every later time as earlier ones; a camera writes every time-high."""
+    p = Path(path)
+    start = _header_bytes(p)
+    words = np.memmap(p, dtype="<u2", mode="r", offset=start, shape=((p.stat().st_size - start) // 2,))
+    last_low, last_high = -1, -1  # the previous time-low of this time-high period (-1 after a time-high word)
+    for i in range(0, len(words), words_per_chunk):
+        w = np.asarray(words[i:i + words_per_chunk])
+        kind = w >> 12
+        marks = np.flatnonzero((kind == 6) | (kind == 8))  # EVT_TIME_LOW, EVT_TIME_HIGH
+        low = np.where(kind[marks] == 6, (w[marks] & 0xFFF).astype(np.int64), -1)
+        before = np.concatenate([[last_low], low[:-1]])
+        bad = np.flatnonzero((low >= 0) & (before - low > 2048))
+        if len(bad):
+            k = int(bad[0])
+            return (f"time-low word {i + int(marks[k])} wraps from {before[k]} to {low[k]} us with no time-high "
+                    "word between them, which Prophesee's EVT 3 does not allow (expelliarmus writes such files; "
+                    "save them as EVT 2)")
+        highs = np.flatnonzero(kind == 8)
+        high = (w[highs] & 0xFFF).astype(np.int64)
+        prev = np.concatenate([[last_high], high[:-1]])
+        bad = np.flatnonzero((high < prev) & (prev != 0xFFF))
+        if len(bad):
+            k = int(bad[0])
+            return (f"time-high word {i + int(highs[k])} wraps from {prev[k]} to {high[k]} (the time passing "
+                    "2^24 us across a gap with no event), which faery, dvsot's EVT reader, decodes to wrong "
+                    "times; convert the file to EVT 2 with the tool that wrote it")
+        if len(low):
+            last_low = int(low[-1])
+        if len(high):
+            last_high = int(high[-1])
+    return None
+
+
+def _dat_2d_events(path: Path, size: tuple[int, int]) -> np.ndarray:
+    """The events of a DAT file of type 0x00 ("2D", as expelliarmus writes): the CD layout, polarity in the payload."""
+    from faery.extension import dat
+
+    with dat.Decoder(path, size, "dat2") as decoder:
+        parts = list(decoder)
+    a = np.concatenate(parts) if parts else np.empty(0, [("t", "<u8"), ("x", "<u2"), ("y", "<u2"), ("payload", "u1")])
+    out = np.empty(len(a), [("t", np.int64), ("x", np.uint16), ("y", np.uint16), ("on", np.uint8)])
+    out["t"], out["x"], out["y"], out["on"] = a["t"], a["x"], a["y"], a["payload"]
+    return out
+
+
 def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_version: str,
                      size_label: str = "size") -> EventFile:
     import faery
 
-    fallback = size or (1280, 720)
     try:
-        stream = faery.events_stream_from_file(path, dimensions_fallback=fallback, version_fallback=
-                                               evt_version if kind == "evt" else None)
-        width, height = stream.dimensions()
-        a = stream.to_array()
+        header_size, event_type = _header(path, kind, evt_version) if kind in ("evt", "dat") else (None, None)
     except Exception as exc:  # faery's decoders raise bare Exceptions with their own messages
         raise UserError(f"{path}: cannot read {kind.upper()} events ({exception_line(exc, kind=False)})") from None
-    if size is not None and (width, height) != tuple(size):
+    if event_type == "evt3":
+        problem = evt3_time_problem(path)
+        if problem:
+            raise UserError(f"{path}: {problem}")
+    if kind in ("evt", "dat") and header_size is None and size is None:
+        raise UserError(f"{path}: the {kind.upper()} header gives no sensor size; give {size_label} WIDTHxHEIGHT")
+    if header_size is not None and size is not None and header_size != tuple(size):
+        raise UserError(f"{path}: the file says {header_size[0]}x{header_size[1]} pixels, "
+                        f"{size_label} says {size[0]}x{size[1]}")
+    try:
+        if event_type == "2d":
+            width, height = header_size or size
+            a = _dat_2d_events(path, (width, height))
+        else:
+            stream = faery.events_stream_from_file(path, dimensions_fallback=header_size or size or (1, 1),
+                                                   version_fallback=evt_version if kind == "evt" else None)
+            width, height = stream.dimensions()
+            a = stream.to_array()
+    except Exception as exc:
+        raise UserError(f"{path}: cannot read {kind.upper()} events ({exception_line(exc, kind=False)})") from None
+    if size is not None and (width, height) != tuple(size):  # an AEDAT4 file's track
         raise UserError(f"{path}: the file says {width}x{height} pixels, {size_label} says {size[0]}x{size[1]}")
     return EventFile(a["t"].astype(np.int64), a["x"], a["y"], a["on"].astype(np.uint8), int(width), int(height), path)
+
+
+def frame_times(path: str | os.PathLike) -> np.ndarray:
+    """The timestamps (us, the file's clock) of the frames of an AEDAT4 file's first frame track, in file order."""
+    p = Path(path)
+    if event_format(p, "events file") != "aedat":
+        raise UserError(f"{p}: frame times come from an AEDAT4 file's frame track; this is not a .aedat4 file")
+    from faery.extension import aedat
+
+    try:
+        with aedat.Decoder(p) as decoder:
+            tracks = [t.id for t in decoder.tracks() if t.data_type == "frame"]
+            if not tracks:
+                raise UserError(f"{p}: the file has no frame track (tracks: "
+                                f"{', '.join(t.data_type for t in decoder.tracks()) or 'none'})")
+            times = [packet.t for track, packet in decoder if track.id == tracks[0]]
+    except UserError:
+        raise
+    except Exception as exc:
+        raise UserError(f"{p}: cannot read the AEDAT4 frame track ({exception_line(exc, kind=False)})") from None
+    return np.asarray(times, np.int64)
 
 
 def check_events(ev: EventFile) -> None:
@@ -134,7 +257,7 @@ def check_events(ev: EventFile) -> None:
 
 
 def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-                     width: int, height: int, evt_version: str = "evt3") -> None:
+                     width: int, height: int, evt_version: str = EXPORT_EVT_VERSION) -> None:
     """Write events (t us >= 0 in time order, pixels, polarity 0/1) in the format of the path's suffix."""
     kind = event_format(path, "output")
     if kind in ("csv", "txt"):
@@ -170,8 +293,8 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
             fh.write(f"{sign}{ti // 1_000_000}.{ti % 1_000_000:06d}," + ",".join(f"{v:.9g}" for v in row) + "\n")
 
 
-def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike, evt_version: str = "evt3",
-                   boxes: bool = True) -> list[Path]:
+def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
+                   evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True) -> list[Path]:
     """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written."""
     from dvsot.dataset import Dataset
     from dvsot.runtime.outputs import replacing, run_outputs

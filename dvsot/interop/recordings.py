@@ -6,6 +6,8 @@ A sequence is an events file (AEDAT4, EVT2/3, DAT, CSV, TXT: dvsot.interop.event
   integer microsecond per line on the events' clock), or `t_s,x,y,w,h` with the time in seconds
   (what `dvsot export` writes beside the events); a row of NaNs or of four zeros is "no target";
 - an absent file, one 0/1 per box (1 = target absent, GOT-10k's absence.label convention).
+With `box_times_from_frames`, the annotation times are the timestamps of the AEDAT4 events file's
+frame track, one per box (FE108: one box per APS frame of the same recording).
 
 Timestamps are rebased to the earliest event or annotation: that time goes to `/t_offset`, so an
 epoch-microsecond recording gives a file as small as any other. Boxes are kept at their annotation
@@ -26,8 +28,8 @@ from typing import Mapping
 import numpy as np
 
 from dvsot.errors import UserError, label
-from dvsot.interop.event_files import EventFile, read_event_file
-from dvsot.defaults import SEGMENT_US
+from dvsot.interop.event_files import EventFile, frame_times, read_event_file
+from dvsot.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time
@@ -132,15 +134,18 @@ def read_absent(path: str | os.PathLike, count: int) -> np.ndarray:
     return flags.astype(bool)
 
 
-def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None, times_path: Path | None) -> int:
-    """The time origin (us): the earliest event or annotation; UserError when the times cannot share one file."""
+def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None, times_path: Path | None,
+                 row: str = "row") -> int:
+    """The time origin (us): the earliest event or annotation; UserError when the times cannot share one file.
+
+    row: what the times file's entries are called in messages (a row of a text file, a frame of a frame track)."""
     from dvsot.limits import MAX_DURATION_S, MAX_DURATION_US
 
     source = times_path or (boxes.path if boxes else None)
     if box_t is not None:
         bad = np.flatnonzero(np.diff(box_t) <= 0)
         if len(bad):
-            where = f"{source}:{boxes.lines[bad[0] + 1]}" if times_path is None else f"{source}: row {bad[0] + 2}"
+            where = f"{source}:{boxes.lines[bad[0] + 1]}" if times_path is None else f"{source}: {row} {bad[0] + 2}"
             raise UserError(f"{where}: annotation time {int(box_t[bad[0] + 1])} us does not come after "
                             f"{int(box_t[bad[0]])} us; annotation times must increase")
         if box_t[-1] < ev.t[0] or box_t[0] > ev.t[-1]:
@@ -162,26 +167,37 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
 
 def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: str | os.PathLike | None = None,
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
-                     size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US, evt_version: str = "evt3",
-                     interpolate: bool = False, labels: Mapping[str, str] | None = None) -> Path:
+                     size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US,
+                     evt_version: str = IMPORT_EVT_VERSION, interpolate: bool = False,
+                     labels: Mapping[str, str] | None = None, box_times_from_frames: bool = False) -> Path:
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
 
-    labels: how messages name the settings boxes, box_times and size (a command's flags)."""
+    box_times_from_frames: the annotation times are the events file's AEDAT4 frame timestamps, one per box.
+    labels: how messages name the settings boxes, box_times, box_times_from_frames and size (a command's flags)."""
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
 
+    if box_times and box_times_from_frames:
+        raise UserError(f"{box_times}: give annotation times either as a file ({label('box_times', labels)}) or "
+                        f"from the frame track ({label('box_times_from_frames', labels)}), not both")
     ev = read_event_file(events, size, evt_version, label("size", labels))
-    if (box_times or absent) and not boxes:
-        raise UserError(f"{box_times or absent}: annotation times and absent flags need a box file "
+    if (box_times or absent or box_times_from_frames) and not boxes:
+        raise UserError(f"{box_times or absent or events}: annotation times and absent flags need a box file "
                         f"({label('boxes', labels)})")
     track, box_t = None, None
     if boxes:
         track = read_box_file(boxes, ev.width, ev.height)
-        if box_times and track.t_us is not None:
-            raise UserError(f"{boxes}: the boxes carry their own times (t_s,x,y,w,h); give no "
-                            f"{label('box_times', labels)}")
-        box_t = read_box_times(box_times, len(track.xywh)) if box_times else track.t_us
+        if (box_times or box_times_from_frames) and track.t_us is not None:
+            given = label("box_times_from_frames" if box_times_from_frames else "box_times", labels)
+            raise UserError(f"{boxes}: the boxes carry their own times (t_s,x,y,w,h); give no {given}")
+        if box_times_from_frames:
+            box_t = frame_times(events)
+            if len(box_t) != len(track.xywh):
+                raise UserError(f"{boxes}: {len(track.xywh)} boxes for the {len(box_t)} frames of the frame track of "
+                                f"{events} (one box per frame)")
+        else:
+            box_t = read_box_times(box_times, len(track.xywh)) if box_times else track.t_us
         if box_t is None:
             raise UserError(f"{boxes}: boxes x,y,w,h have no times; give {label('box_times', labels)} FILE "
                             "(one annotation time per line, microseconds on the events' clock) or a box file of "
@@ -190,9 +206,11 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
             xywh = track.xywh.copy()
             xywh[read_absent(absent, len(xywh))] = np.nan
             track = BoxFile(xywh, track.t_us, track.lines, track.path)
-    origin = _check_times(ev, track, box_t, Path(box_times) if box_times else None)
+    times_path = Path(events) if box_times_from_frames else Path(box_times) if box_times else None
+    origin = _check_times(ev, track, box_t, times_path, "frame" if box_times_from_frames else "row")
     attrs = {"source": {"events": str(events), "boxes": str(boxes) if boxes else None,
-                        "box_times": str(box_times) if box_times else None, "absent": str(absent) if absent else None},
+                        "box_times": str(box_times) if box_times else ("frames" if box_times_from_frames else None),
+                         "absent": str(absent) if absent else None},
              "generator": "dvsot import", "versions": {"dvsot": __version__}}
     t = ev.t - origin
     with DatasetWriter(out, ev.width, ev.height, segment_us, attrs=attrs, t_offset_us=origin,

@@ -17,7 +17,7 @@ from dvsot.dataset.boxes import box_from_mask
 from dvsot.scene import SceneConfig
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
-from dvsot.runtime.outputs import run_outputs
+from dvsot.runtime.outputs import run_outputs, writing
 from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times
 from dvsot.scene.shapes import mesh_for, sample_points
 from dvsot.pipeline.sequence import write_sequence
@@ -162,7 +162,8 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                     if i == 0:
                         first_s = render_s
                     if keep:
-                        np.save(keep / f"{i:06d}.npy", luma)
+                        with writing(keep_frames):  # a full disk: one line naming --keep-frames
+                            np.save(keep / f"{i:06d}.npy", luma)
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
                     yield luma

@@ -21,6 +21,7 @@ import contextvars
 import errno
 import hashlib
 import os
+import re
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -33,6 +34,9 @@ MANIFEST_FORMAT = "dvsot-run"
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
 _DISK_WORDS = ("No space left on device", "Disk quota exceeded", "Read-only file system", "errno = 28",
                "File too large")
+# numpy's tofile (np.save) reports a short fwrite without an errno; on a regular file only a full disk, a quota
+# or a size limit makes one
+_SHORT_WRITE = re.compile(r"\b\d+ requested and \d+ written\b")
 
 
 def target(path: str | os.PathLike) -> Path:
@@ -100,6 +104,8 @@ def disk_error(exc: BaseException) -> str | None:
         for words in _DISK_WORDS:
             if words in text:
                 return "No space left on device" if words == "errno = 28" else words
+        if isinstance(exc, OSError) and exc.errno is None and _SHORT_WRITE.search(text):
+            return f"a short write: {text}; the disk is full or a size limit was reached"
         exc = exc.__cause__ or exc.__context__
     return None
 

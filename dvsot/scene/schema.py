@@ -12,7 +12,7 @@ import hashlib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from dvsot.defaults import SEGMENT_US
 from dvsot.events import EventParams
@@ -25,6 +25,18 @@ Vec3 = tuple[Coord, Coord, Coord]
 Scale = Annotated[Float, Field(ge=1e-3, le=1e3)]
 Size = Annotated[Float, Field(gt=0, le=1e4, description="metres")]
 Colour = tuple[Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)], Annotated[Float, Field(ge=0)]]
+# Blender's camera clamps its lens (focal length) and sensor size into [1 mm, float32 max]: a value outside would be
+# rendered as another camera than the one the ground truth projects with, so the schema refuses it
+CAMERA_MM = (1.0, 3.4028234663852886e38)
+DEFAULT_FOCAL_MM = 35.0  # the lens of a sensor that gives neither focal_mm nor fx
+
+
+def _camera_mm_problem(value: float) -> str | None:
+    """Why a lens or sensor size (mm) is one Blender's camera would change, or None if it keeps it."""
+    lo, hi = CAMERA_MM
+    if lo <= value <= hi:
+        return None
+    return f"must be between {lo:g} and {hi:.4g} mm (Blender's camera clamps it into that range), got {value:g}"
 
 
 class Sensor(Strict):
@@ -32,12 +44,30 @@ class Sensor(Strict):
 
     width: Int = Field(640, ge=8, le=8192)
     height: Int = Field(480, ge=8, le=8192)
-    focal_mm: Float | None = Field(None, gt=0)
-    sensor_width_mm: Float = Field(36.0, gt=0)
+    focal_mm: Float | None = None  # CAMERA_MM
+    sensor_width_mm: Float = 36.0  # CAMERA_MM
     fx: Float | None = Field(None, gt=0, description="focal length in pixels (overrides focal_mm)")
     fy: Float | None = Field(None, gt=0, description="must equal fx: square pixels")
-    cx: Float | None = None
+    cx: Float | None = None  # pixels, within float32's range (_principal_point)
     cy: Float | None = None
+
+    @field_validator("focal_mm", "sensor_width_mm")
+    @classmethod
+    def _camera_mm(cls, value: float | None) -> float | None:
+        problem = None if value is None else _camera_mm_problem(value)
+        if problem:
+            raise ValueError(problem)
+        return value
+
+    @field_validator("cx", "cy")
+    @classmethod
+    def _principal_point(cls, value: float | None) -> float | None:
+        # Blender stores the principal point as a float32 camera shift, (c - size / 2) / max side, clamped to
+        # float32's range; within +-float32 max pixels the shift always fits
+        if value is not None and abs(value) > CAMERA_MM[1]:
+            raise ValueError(f"must be between {-CAMERA_MM[1]:.4g} and {CAMERA_MM[1]:.4g} px (Blender's camera "
+                             f"shift is a 32-bit float), got {value:g}")
+        return value
 
     @model_validator(mode="after")
     def _lens(self) -> "Sensor":
@@ -45,13 +75,26 @@ class Sensor(Strict):
             raise ValueError("fy must equal fx (square pixels)")
         if self.fy is not None and self.fx is None:
             raise ValueError("fy given without fx")
+        if self.fx is not None and _camera_mm_problem(self.lens_mm()):
+            px = max(self.width, self.height)
+            lo, hi = (m / self.sensor_width_mm * px for m in CAMERA_MM)
+            raise ValueError(f"fx must be between {lo:g} and {hi:.4g} px with sensor_width_mm {self.sensor_width_mm:g} "
+                             f"and a {px} px image side (a lens of 1 mm or more: Blender's camera clamps shorter "
+                             f"ones), got {self.fx:g}")
         return self
+
+    def lens_mm(self) -> float:
+        """The focal length (mm) of Blender's camera for this sensor: fx in pixels on sensor_width_mm."""
+        if self.fx is None:
+            return self.focal_mm or DEFAULT_FOCAL_MM
+        return self.fx * self.sensor_width_mm / max(self.width, self.height)
 
     def intrinsics(self):
         """Pixel intrinsics of this sensor."""
         from dvsot.scene.trajectory import Intrinsics
 
-        fx = self.fx if self.fx is not None else (self.focal_mm or 35.0) / self.sensor_width_mm * max(self.width, self.height)
+        px = max(self.width, self.height)
+        fx = self.fx if self.fx is not None else (self.focal_mm or DEFAULT_FOCAL_MM) / self.sensor_width_mm * px
         cx = self.cx if self.cx is not None else self.width / 2
         cy = self.cy if self.cy is not None else self.height / 2
         return Intrinsics(fx, cx, cy, self.width, self.height)

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 from pydantic import BaseModel, Field, ValidationError
 
+from dvsot.errors import RunError
 from dvsot.strict import Strict
 
 HELD_OUT_EVERY = 10  # every 10th usable segment of each file is a validation segment, never a training one
@@ -102,7 +103,8 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
     """The training loop: each epoch a permutation of `items` (at most cfg.segments_per_epoch), in steps of
     cfg.batch_segments; `batch_loss(batch)` gives a step's loss and extra figures (appended to history under their
     names); every cfg.val_every steps and at the end `validate()` (eval mode) adds to history["val"] with `report`
-    on the progress bar; stops after cfg.max_minutes. Returns history with train_loss, steps and minutes."""
+    on the progress bar; stops after cfg.max_minutes. Returns history with train_loss, steps and minutes. A loss that
+    is NaN or infinite stops it with a RunError."""
     from tqdm import tqdm
 
     history.setdefault("train_loss", [])
@@ -117,6 +119,10 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
         for b in range(0, len(order) - cfg.batch_segments + 1, cfg.batch_segments):
             model.train()
             loss, extra = batch_loss([items[k] for k in order[b:b + cfg.batch_segments]])
+            if not bool(torch.isfinite(loss.detach()).all()):  # diverged: every later step and the weights are lost
+                bar.close()
+                raise RunError(f"training diverged at step {step + 1} (epoch {epoch + 1}): the loss is "
+                               f"{float(loss.detach())} (a learning rate of {cfg.lr:g} may be too large)")
             opt.zero_grad()
             loss.backward()
             opt.step()

@@ -113,8 +113,11 @@ def checkpoints(tmp_path):
     """Bad SCTN checkpoints of every kind the audit tried, made from a fresh (untrained) network."""
     import torch
 
-    from sctn.checkpoint import save_checkpoint
+    from sctn.checkpoint import DIGEST_KEY, save_checkpoint, weights_digest
     from sctn.network import SCTN, NetworkConfig
+
+    def sealed(b):  # well-formed files whose digest fits their (wrong) tensors: refused for the tensors
+        return dict(b, meta={**b["meta"], DIGEST_KEY: weights_digest(b["state_dict"])})
 
     d = tmp_path / "ckpt"
     d.mkdir()
@@ -125,9 +128,10 @@ def checkpoints(tmp_path):
     torch.save({"hello": 1}, d / "notsctn.pt")
     torch.save([1, 2, 3], d / "list.pt")
     missing = dict(blob, state_dict={k: v for k, v in blob["state_dict"].items() if k != "convs.0.weight"})
-    torch.save(missing, d / "missingkey.pt")
+    torch.save(sealed(missing), d / "missingkey.pt")
     torch.save(dict(blob, config={**blob["config"], "bogus": 1}), d / "badconfig.pt")
-    torch.save(dict(blob, state_dict={**blob["state_dict"], "convs.0.weight": torch.zeros(3, 3)}), d / "badshape.pt")
+    torch.save(sealed(dict(blob, state_dict={**blob["state_dict"], "convs.0.weight": torch.zeros(3, 3)})),
+               d / "badshape.pt")
     good.unlink()
     good.with_suffix(".json").unlink()
     return d

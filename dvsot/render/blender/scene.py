@@ -1,7 +1,8 @@
 """A scene built in Blender from a SceneConfig: pose it at a time, render intensity and masks.
 
 One render call gives three images; the rendered ones are read back from a multilayer EXR written
-under /dev/shm (the render result cannot be read from memory in background mode):
+under RENDER_DIR, /dev/shm (the render result cannot be read from memory in background mode); an image
+Blender could not write there (a full or read-only file system) is one RunError line:
 
 * view layer "main": the whole scene; Combined -> linear-light luma (Rec. 709), Object Index ->
   the *visible* target mask (occluders in front hide it);
@@ -32,14 +33,16 @@ import numpy as np
 
 from dvsot.render.blender.bake import bake_background, should_bake
 from dvsot.render.blender.materials import direct_lighting, material, texture_colour
-from dvsot.render.blender.quiet import quiet_stdout
+from dvsot.render.blender.quiet import captured_output, quiet_stdout
 from dvsot.scene import Background, SceneConfig, SceneObject, Texture
+from dvsot.errors import RunError, exception_line
 from dvsot.render.plane_view import seen_part
 from dvsot.render.raster import silhouette_mask, triangulate
 from dvsot.scene.shapes import mesh_for
 from dvsot.scene.trajectory import pose_and_scale
 
 TARGET_INDEX = 1
+RENDER_DIR: str | None = "/dev/shm" if os.path.isdir("/dev/shm") else None  # None: the system's temp directory
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 # camera poses sampled over the sequence to find the part of the background plane it sees
 _VIEW_SAMPLES = 65
@@ -67,12 +70,21 @@ class BlenderScene:
     def __init__(self, cfg: SceneConfig) -> None:
         self.cfg = cfg
         self.width, self.height = cfg.sensor.width, cfg.sensor.height
-        self._tmp = Path(tempfile.mkdtemp(prefix="dvsot-render-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
-        with quiet_stdout():
-            bpy.ops.wm.read_factory_settings(use_empty=True)
-        self.scene = bpy.context.scene
-        self._setup_render()
-        self._build()
+        where = RENDER_DIR or tempfile.gettempdir()
+        try:
+            self._tmp = Path(tempfile.mkdtemp(prefix="dvsot-render-", dir=where))
+        except OSError as exc:
+            raise RunError(f"{where}: cannot make Blender's render directory ({exc.strerror or exc}); "
+                           f"nothing was replaced") from None
+        try:
+            with quiet_stdout():
+                bpy.ops.wm.read_factory_settings(use_empty=True)
+            self.scene = bpy.context.scene
+            self._setup_render()
+            self._build()
+        except BaseException:
+            self.close()
+            raise
 
     def close(self) -> None:
         """Remove the temporary render directory."""
@@ -172,7 +184,7 @@ class BlenderScene:
         cam_data.sensor_fit = "HORIZONTAL" if self.width >= self.height else "VERTICAL"
         cam_data.sensor_width = cfg.sensor.sensor_width_mm
         cam_data.sensor_height = cfg.sensor.sensor_width_mm
-        cam_data.lens = k.fx * cfg.sensor.sensor_width_mm / max(self.width, self.height)
+        cam_data.lens = cfg.sensor.lens_mm()  # the schema keeps it and the sensor size where Blender keeps them
         cam_data.shift_x = -(k.cx - self.width / 2) / max(self.width, self.height)
         cam_data.shift_y = (k.cy - self.height / 2) / max(self.width, self.height)
         cam_data.clip_start, cam_data.clip_end = 0.01, 1e5
@@ -272,6 +284,28 @@ class BlenderScene:
             if ob is self.target:
                 self._target_matrix = m
 
+    def _channels(self) -> list[str]:
+        """The EXR channels render() reads: main's colour and object index, and the mask layer's if rendered."""
+        names = ["main.Combined", "main.Object Index.X"]
+        return names + (["mask.Object Index.X"] if self.cfg.render.amodal_mask == "render" else [])
+
+    def _render_failure(self, t: float, what: str) -> RunError:
+        """One line for a render whose image did not come back (t in seconds), naming a full or read-only
+        render directory when that is the cause."""
+        reason = None
+        try:
+            st = os.statvfs(self._tmp)
+            if st.f_flag & os.ST_RDONLY:
+                reason = "Read-only file system"
+            elif st.f_bavail * st.f_frsize < self.width * self.height * 4 * 4 * len(self._channels()):
+                reason = "No space left on device"  # not room for one uncompressed image of every layer
+        except OSError as exc:
+            reason = exc.strerror or str(exc)
+        if reason:
+            return RunError(f"{self._tmp.parent}: Blender cannot write its render at t={t:.6f} s ({reason}); "
+                            f"nothing was replaced")
+        return RunError(f"{self._tmp}: Blender's render at t={t:.6f} s failed ({what}); nothing was replaced")
+
     def raster_amodal_mask(self) -> np.ndarray:
         """The amodal target mask at the current pose, from the target's projected triangles (bool HxW)."""
         m = self._target_matrix
@@ -288,12 +322,22 @@ class BlenderScene:
         with quiet_stdout():
             result = bpy.ops.render.render(write_still=True)
         if "FINISHED" not in result or not path.is_file():
-            raise RuntimeError(f"Blender render failed at t={t:.6f} s")
-        try:
-            with OpenEXR.File(str(path)) as f:
-                channels = {}
-                for part in f.parts:
-                    channels.update(part.channels)
+            raise self._render_failure(t, "Blender wrote no image")
+        channels = {}
+        try:  # a failure is worded while the file is still there: a full disk is then still full
+            try:
+                with captured_output() as printed, OpenEXR.File(str(path)) as f:
+                    for part in f.parts:
+                        channels.update(part.channels)
+            except Exception as exc:  # OpenEXR raises several kinds for a damaged file
+                raise self._render_failure(t, f"its image cannot be read: {exception_line(exc, 120)}") from None
+            # a file cut short (a full disk) reads with zeros where its pixels are missing: OpenEXR only prints that
+            damaged = [line for line in printed[0].splitlines() if "Exception raised" in line or "EXR_ERR" in line]
+            if damaged:
+                raise self._render_failure(t, f"its image is cut short: {damaged[0].strip()[:120]}")
+            missing = [c for c in self._channels() if c not in channels]
+            if missing:
+                raise self._render_failure(t, f"its image lacks {', '.join(missing)}")
         finally:
             path.unlink(missing_ok=True)
         rgba = channels["main.Combined"].pixels

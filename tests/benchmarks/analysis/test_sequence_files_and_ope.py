@@ -85,3 +85,54 @@ def test_curves_and_centre_errors():
     assert s[0] == pytest.approx(2 / 3) and s[10] == pytest.approx(1 / 3) and s[20] == 0.0
     p = precision_curve(np.array([0.0, 20.0, 20.5, np.inf]))
     assert p[0] == 0.25 and p[20] == 0.5 and p[50] == 0.75
+
+
+def _iou_by_hand(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """IoU of xywh rows, written apart from dvsot.dataset.boxes: corners, overlap, union; a non-finite row scores 0."""
+    lo, hi = np.maximum(a[:, :2], b[:, :2]), np.minimum(a[:, :2] + a[:, 2:], b[:, :2] + b[:, 2:])
+    inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
+    union = np.prod(a[:, 2:], axis=1) + np.prod(b[:, 2:], axis=1) - inter
+    return np.nan_to_num(inter / union, nan=0.0)
+
+
+def _auc_by_counting(ious: np.ndarray) -> float:
+    """Success AUC without a curve: an IoU u clears the thresholds k/20 < u, ceil(20 u) of the 21, averaged."""
+    cleared = np.where(ious > 0, np.minimum(np.ceil(20 * ious), 21), 0)
+    return float(np.mean(cleared / 21))
+
+
+def test_got10k_layout_reproduces_the_pooled_auc(data, tmp_path):
+    from benchmarks.evaluation.protocol import MIN_BOX_PX
+    from dvsot.dataset import Dataset
+
+    late = tmp_path / "late.h5"  # ten segments, the target's box known from 15 ms: segment 0 has none
+    with DatasetWriter(late, 64, 48, attrs={"split": "test"}) as w:
+        t = np.arange(10) * 10_000 + 1
+        w.append_events(EventBatch(np.full(10, 3, np.uint16), np.full(10, 3, np.uint16), t, np.ones(10, np.uint8)))
+        w.append_boxes([15_000, 100_000], [[5, 5, 10, 10], [5, 5, 10, 10]])
+        w.close(100_000)
+    out = tmp_path / "ope"
+    assert main(["bench", "--tracker", "test-script", "--data", str(tmp_path), "--out", str(out),
+                 "--jobs", "1", "--quiet", "--protocol", "ope"]) == 0
+    d = out / "test-script"
+    pooled, per_sequence = [], []
+    for path in (data, late):
+        seq = path.stem
+        pred = np.loadtxt(d / seq / f"{seq}_001.txt", delimiter=",")  # GOT-10k's layout, as got10k reads it
+        assert (d / seq / f"{seq}_time.txt").read_text() == (d / "times" / f"{seq}_time.txt").read_text()
+        np.testing.assert_array_equal(pred, np.loadtxt(d / f"{seq}.txt", delimiter=","), strict=True)
+        with Dataset(path) as ds:
+            gt, scored = ds.segment_boxes(), ds.segment_scored()
+        init = int(np.flatnonzero(np.isfinite(pred).all(axis=1))[0])  # the first box given: not scored
+        ok = scored & np.isfinite(gt).all(axis=1) & (gt[:, 2:] >= MIN_BOX_PX).all(axis=1)
+        ok[: init + 1] = False
+        ious = _iou_by_hand(pred[ok], gt[ok])
+        pooled.append(ious)
+        per_sequence.append(_auc_by_counting(ious))
+    assert [len(v) for v in pooled] == [5, 8]  # late.h5: init on segment 1, scored from 2
+    summary = json.loads((out / "ope.json").read_text())["test-script"]
+    assert summary["all"]["AUC"] == pytest.approx(_auc_by_counting(np.concatenate(pooled)), abs=1e-12)
+    assert summary["seq"]["AUC"] == pytest.approx(per_sequence[0], abs=1e-12)
+    assert summary["late"]["AUC"] == pytest.approx(per_sequence[1], abs=1e-12)
+    # got10k's report averages the sequences' curves: each sequence weighs the same, whatever its length
+    assert np.mean(per_sequence) != pytest.approx(summary["all"]["AUC"], abs=1e-4)

@@ -134,3 +134,17 @@ def test_writer_refuses_epoch_timestamps_before_allocating(tmp_path):
         with DatasetWriter(tmp_path / "epoch.h5", 64, 48) as w:
             w.append_events(ev)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_text_attributes_read_back_as_str(tmp_path):
+    path = tmp_path / "seq.h5"
+    with DatasetWriter(path, 64, 48, attrs={"name": "Straße 5", "split": "test", "simulator": {"model": "v2e"}}) as w:
+        w.close(10_000)
+    with Dataset(path) as ds:
+        assert type(ds.attrs["name"]) is str and ds.attrs["name"] == ds.name == "Straße 5"
+        assert type(ds.attrs["format"]) is str and type(ds.attrs["split"]) is str
+        assert type(ds.attrs["simulator"]["model"]) is str
+        text = [k for k, v in ds.attrs.items() if isinstance(v, (bytes, np.bytes_))]
+        assert text == []
+    with h5py.File(path) as f:  # plain h5py: fixed-length UTF-8 comes back as bytes, as docs/dataset-files.md says
+        assert f.attrs["name"].decode("utf-8") == "Straße 5"

@@ -33,8 +33,15 @@ def test_structured_round_trip():
     back = EventBatch.from_structured(s)
     for col in "xytp":
         np.testing.assert_array_equal(getattr(back, col), getattr(ev, col))
+    assert s["p"].dtype == np.int8 and set(np.unique(s["p"])) == {0, 1}  # tonic's signed p
     tonic_like = np.zeros(3, np.dtype([("x", int), ("y", int), ("t", int), ("p", bool)]))
     assert EventBatch.from_structured(tonic_like).p.dtype == np.uint8
+    signed = np.zeros(3, np.dtype([("x", int), ("y", int), ("t", int), ("p", np.int8)]))
+    signed["p"] = [-1, 1, 0]
+    np.testing.assert_array_equal(EventBatch.from_structured(signed).p, [0, 1, 0])
+    signed["p"][2] = 2
+    with pytest.raises(ValueError, match="field p of event 2 is 2"):
+        EventBatch.from_structured(signed)
     with pytest.raises(ValueError, match="missing p"):
         EventBatch.from_structured(np.zeros(2, np.dtype([("x", int), ("y", int), ("t", int)])))
 
@@ -56,6 +63,7 @@ def test_items_match_the_reader_and_pickle(files):
 
 
 def test_dataloader_with_two_workers(files):
+    import torch
     from torch.utils.data import DataLoader
 
     data = SegmentDataset(files, transform=event_count)
@@ -67,4 +75,5 @@ def test_dataloader_with_two_workers(files):
         boxes.append(b)
     assert counts == [data[i][0] for i in range(len(data))]  # the workers' items, in order
     assert sum(counts) == 6_000  # every event of both files lies in a segment with a box
-    assert np.concatenate(boxes).shape == (20, 4)
+    assert all(isinstance(b, torch.Tensor) and b.dtype == torch.float32 for b in boxes)
+    assert torch.cat(boxes).shape == (20, 4)

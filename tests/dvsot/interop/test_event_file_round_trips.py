@@ -86,3 +86,25 @@ def test_unknown_export_suffix_writes_nothing(tmp_path, capsys):
     out = tmp_path / "seq.xyz"
     _one_line_exit_2(capsys, ["export", str(src), "-o", str(out)], str(out), "unknown event file suffix '.xyz'")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["seq.h5"]
+
+
+def test_default_raw_is_evt2_which_expelliarmus_reads_exactly(tmp_path):
+    from expelliarmus import Wizard  # tonic's reader of Prophesee files
+
+    rng = np.random.default_rng(5)
+    n, offset = 4_000, 1_700_000_000_123_456  # an epoch start; 2 s with gaps past EVT 3's 4096 us time-high step
+    t = np.sort(rng.integers(0, 2_000_000, n))
+    ev = EventBatch(rng.integers(0, W, n).astype(np.uint16), rng.integers(0, H, n).astype(np.uint16), t,
+                    rng.integers(0, 2, n).astype(np.uint8))
+    with DatasetWriter(tmp_path / "seq.h5", W, H, t_offset_us=offset) as w:
+        w.append_events(ev)
+        w.close(2_000_000)
+    out = tmp_path / "seq.raw"
+    assert main(["export", str(tmp_path / "seq.h5"), "-o", str(out), "--no-boxes"]) == 0
+    header = [line for line in out.read_bytes().split(b"\n")[:8] if line.startswith(b"%")]
+    assert b"% evt 2.0" in header
+    t0 = int(next(line for line in header if line.startswith(b"% t0 ")).split()[2])
+    got = Wizard(encoding="evt2").read(out)  # expelliarmus leaves out the header's t0: added here
+    np.testing.assert_array_equal(got["t"].astype(np.int64) + t0, t + offset)
+    for col in "xyp":
+        np.testing.assert_array_equal(got[col], getattr(ev, col))

@@ -1,0 +1,58 @@
+"""A tracker's result depends on the sequence alone: run twice in one worker after every other tracker (as `bench
+--jobs N` does) it gives, box for box, what it gives alone in a fresh worker (OpenCV's MIL drew its features from
+the process's rand(), whose state the trackers before it had moved)."""
+
+import sys
+from contextlib import ExitStack
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.trackers import BUILTIN
+from dvsot.runtime.worker_pool import WorkerPool
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from synthetic import moving_square_file  # noqa: E402
+
+SEGMENTS = 8
+LIGHT = {"finetune_iters": 2, "n_candidates": 16, "energy_every": 0}  # SCTN-like trackers, kept quick
+TRACKERS = {"mil": {}, "csrt": {}, "kcf": {}, "rct": {}, "siamfc": {}, "sctn": {**LIGHT, "finetune_search_iters": 0},
+            "sctn_ann": LIGHT}
+
+
+def run_in_order(order: list[str], path: str) -> list[tuple[str, np.ndarray, str | None]]:
+    """(tracker, predicted boxes, error) of each tracker of `order` run in turn on `path` in this process."""
+    from benchmarks.evaluation.runner import run_one
+
+    out = []
+    for name in order:
+        r = run_one(name, path, max_segments=SEGMENTS, options=TRACKERS[name])
+        out.append((name, r.predictions, r.error))
+    return out
+
+
+@pytest.fixture(scope="module")
+def sequence(tmp_path_factory) -> str:
+    """A moving square (96x72 px, 16 px, 12 segments) that every tracker loses and re-finds now and then."""
+    d = tmp_path_factory.mktemp("history")
+    return str(moving_square_file(d / "sq.h5", width=96, height=72, size=16, duration_ms=120,
+                                  velocity_px_s=(300.0, 120.0), start=(10.0, 10.0)))
+
+
+def test_every_built_in_tracker_is_checked():
+    assert sorted(TRACKERS) == sorted(BUILTIN)
+
+
+@pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"]],
+                         ids=["opencv-rct", "torch"])
+def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, names):
+    with ExitStack() as stack:
+        pools = [stack.enter_context(WorkerPool(1)) for _ in range(len(names) + 1)]
+        shared = pools[0].submit(run_in_order, names + names[::-1], sequence)  # each twice, after all the others
+        alone = {n: p.submit(run_in_order, [n], sequence) for n, p in zip(names, pools[1:])}  # a fresh worker each
+        runs = shared.result(timeout=600)
+        first = {n: f.result(timeout=600)[0] for n, f in alone.items()}
+    for name, boxes, error in runs:
+        assert error is None and first[name][2] is None, (name, error, first[name][2])
+        np.testing.assert_array_equal(boxes, first[name][1], err_msg=f"{name}: other boxes after other trackers")
