@@ -157,8 +157,12 @@ def _cubalif(nir, c: dict[str, np.ndarray], shape: tuple[int, ...], theta: float
 
 def _sctn_checkpoint(path: Path) -> SCTN:
     """The SCTN of a checkpoint file; UserError naming the file and what it holds otherwise."""
+    from dvsot.validate import file_kind_problem
     from sctn.checkpoint import load_checkpoint, read_checkpoint
 
+    held = _hdf5_content(path) if file_kind_problem(path) is None else None
+    if held:
+        raise UserError(f"{path}: holds {held}, not an SCTN checkpoint (the .pt that `dvsot train` writes)")
     try:
         model, _ = load_checkpoint(path)
     except UserError as exc:
@@ -171,6 +175,24 @@ def _sctn_checkpoint(path: Path) -> SCTN:
     except Exception as exc:  # a config or tensors that do not fit the network
         raise UserError(f"{path}: not a usable SCTN checkpoint ({exception_line(exc, 200)})") from None
     return model
+
+
+def _hdf5_content(path: Path) -> str | None:
+    """What an HDF5 file holds ("a NIR graph", "a dvsot dataset", ...), or None if the file is not HDF5."""
+    import h5py
+
+    from dvsot.dataset.format import FORMAT, decode_attr
+
+    with open(path, "rb") as f:
+        if f.read(8) != b"\x89HDF\r\n\x1a\n":
+            return None
+    try:
+        with h5py.File(path, "r") as f:
+            if "node" in f and "version" in f:
+                return "a NIR graph"
+            return "a dvsot dataset" if decode_attr(f.attrs.get("format")) == FORMAT else "HDF5 data"
+    except OSError:
+        return "a damaged HDF5 file"
 
 
 def export_nir(checkpoint: str | os.PathLike, output: str | os.PathLike,
