@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export the checkpoint; print the path written."""
-    from sctn.nir_export import export_nir
+    from sctn import export_nir
 
     print(export_nir(args.checkpoint, args.output, args.discretisation))
     return 0
