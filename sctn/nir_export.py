@@ -97,7 +97,6 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
     cfg = model.cfg
     sizes = cfg.conv_sizes()
     consts = clif_constants(model)
-    theta = float(model.neurons[0].theta)
     nodes: dict = {"input": nir.Input(input_type={"input": np.array([2, cfg.input_size, cfg.input_size])})}
     chain = ["input"]
     in_size = cfg.input_size
@@ -106,9 +105,9 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
         weight = conv.weight.detach().numpy().astype(np.float32)
         bias = (conv.bias.detach().numpy() if conv.bias is not None else np.zeros(conv.out_channels)).astype(np.float32)
         nodes[name] = nir.Conv2d(input_shape=(in_size, in_size), weight=weight, stride=conv.stride,
-                                 padding=(0, 0), dilation=(1, 1), groups=1, bias=bias)
+                                 padding=conv.padding, dilation=conv.dilation, groups=conv.groups, bias=bias)
         shape = (conv.out_channels, sizes[k], sizes[k])
-        nodes[f"{name}_lif"] = _cubalif(nir, consts[k], shape, theta, discretisation)
+        nodes[f"{name}_lif"] = _cubalif(nir, consts[k], shape, model.neurons[k].theta, discretisation)
         chain += [name, f"{name}_lif"]
         in_size = sizes[k]
     last = (cfg.channels[-1], sizes[-1], sizes[-1])
@@ -121,7 +120,8 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
             nodes[name] = nir.Linear(weight=weight)
         else:
             nodes[name] = nir.Affine(weight=weight, bias=fc.bias.detach().numpy().astype(np.float32))
-        nodes[f"{name}_lif"] = _cubalif(nir, consts[3 + k], (fc.out_features,), theta, discretisation)
+        nodes[f"{name}_lif"] = _cubalif(nir, consts[3 + k], (fc.out_features,), model.neurons[3 + k].theta,
+                                        discretisation)
         chain += [name, f"{name}_lif"]
     nodes["output"] = nir.Output(output_type={"output": np.array([2])})
     chain.append("output")

@@ -169,6 +169,14 @@ def test_export_model_refuses_another_models_checkpoint(tmp_path, capsys, name, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sctn.nir"]
 
 
+def test_export_model_refuses_an_output_it_cannot_write(tmp_path, capsys):
+    ckpt = str(default_checkpoint_path())
+    assert main(["export-model", ckpt, "-o", str(tmp_path / "no" / "sctn.nir")]) == 2
+    assert main(["export-model", ckpt, "-o", ckpt]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "does not exist" in err[0] and "would overwrite an input file" in err[1], err
+
+
 def test_export_model_names_what_a_non_checkpoint_holds(tmp_path, capsys):
     graph_file = tmp_path / "g.nir"
     nir.write(graph_file, sctn_graph(SCTN()))
