@@ -210,3 +210,23 @@ def test_the_simulator_is_independent_of_what_it_checks():
     names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     names |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     assert names <= {"__future__", "typing", "numpy", "nir"}, names
+
+
+def test_a_network_with_biases_and_tail_steps_exports_too():
+    """The older layout: biases become Conv2d biases and Affine nodes (a constant input each step), the tail
+    steps are empty input steps the user appends (the metadata's tail_steps)."""
+    torch.manual_seed(0)
+    model = SCTN(NetworkConfig(bias=True, tail_steps=2, channels=(4, 8, 8), fc=(16, 8))).eval()
+    with torch.no_grad():
+        for layer in list(model.convs) + list(model.fcs):
+            layer.bias.uniform_(-0.05, 0.1)
+    x = (torch.rand(3, 10, 2, 107, 107) < 0.05).float()
+    graph = sctn_graph(model)
+    assert type(graph.nodes["fc1"]).__name__ == "Affine" and int(graph.metadata["tail_steps"]) == 2
+    ref_spikes, ref_volts = dvsot_run(model, x)
+    steps = np.concatenate([x.numpy(), np.zeros((3, 2, 2, 107, 107), np.float32)], axis=1).transpose(1, 0, 2, 3, 4)
+    outputs, volts = run_graph(graph, steps, DT_S, "exact", "subtract")
+    for name, ref in zip(LIF_NODES[:5], ref_spikes):
+        assert ref.sum() > 0, name
+        np.testing.assert_array_equal(outputs[name].reshape(ref.shape), ref, err_msg=name)
+    np.testing.assert_allclose(volts["out_lif"], ref_volts, atol=V_TOL)
