@@ -101,7 +101,7 @@ def reference(files: list[Path], out: Path, checkpoint: str | None, segments: in
         graph = nir.read(graph_path)
         for integrator, reset in ((disc, "subtract"), (disc, "value"), ("euler" if disc == "exact" else "exact",
                                                                        "subtract")):
-            outputs, v = run_graph(graph, steps_first, 1e-3, integrator, reset)
+            outputs, v = run_graph(graph, steps_first, float(graph.metadata["dt"]), integrator, reset)
             results[f"nir_sim: {disc} graph, {integrator} integrator, reset {reset}"] = compare(
                 ref_spikes, ref_vmax, outputs, v["out_lif"][:, :, TARGET].max(axis=0), candidates)
     (out / "nir_sim.json").write_text(json.dumps(results, indent=2))
@@ -126,7 +126,7 @@ def norse_runs(out: Path) -> dict:
     for disc in ("exact", "euler"):
         graph = nir.read(out / f"sctn_{disc}.nir")
         for reset_name, method in (("subtract", reset_subtract), ("value", reset_value)):
-            net = norse_torch.from_nir(graph, dt=1e-3, reset_method=method)
+            net = norse_torch.from_nir(graph, dt=float(graph.metadata["dt"]), reset_method=method)
             spikes = {name: np.zeros(s.shape, bool) for name, s in zip(LIF_NODES, ref_spikes)}
             vmax = np.full(shape[0], -np.inf)
             out_lif = net.get_submodule("out_lif")

@@ -11,8 +11,8 @@ stays outside the graph: the graph's input is that canvas, step by step.
 
 C-LIF (sctn/neurons.py) as CubaLIF, whose NIR equations are tau_syn dI/dt = -I + w_in S and
 tau_mem dv/dt = (v_leak - v) + r I, z = [v > v_threshold], v -> v_reset after a spike. An input spike is
-a value of 1 for one step of dt = 1 ms (an impulse of area dt, as a discrete simulator at dt integrates
-it), so a spike at time 0 gives I(t) = w_in dt / tau_syn exp(-t / tau_syn) and
+a value of 1 for one step of dt (an impulse of area dt, as a discrete simulator at dt integrates it; dt is
+the network's step_us, 1 ms in the paper preset and in the formulas below), so a spike at time 0 gives I(t) = w_in dt / tau_syn exp(-t / tau_syn) and
 
     v(t) = r w_in dt / (tau_mem - tau_syn) (exp(-t / tau_mem) - exp(-t / tau_syn)),
 
@@ -52,14 +52,14 @@ import torch
 from dvsot.errors import UserError, exception_line
 from sctn.network import SCTN
 
-DT_S = 1e-3  # the step the constants are converted for: C-LIF's 1 ms, in NIR's unit (seconds)
+DT_S = 1e-3  # C-LIF's step in the paper preset (1 ms), in NIR's unit (seconds); a network's own is its step_us
 DISCRETISATIONS = ("exact", "euler")
 LAYER_NAMES = ("conv1", "conv2", "conv3", "fc1", "fc2", "out")
 TARGET = 1  # index of the target neuron in out_lif (0 is the background neuron)
 
 
 def clif_constants(model: SCTN) -> list[dict[str, np.ndarray]]:
-    """Per C-LIF layer, per channel (float64): a_m, a_s (ms), d_m, d_s (decays per 1 ms step) and V0."""
+    """Per C-LIF layer, per channel (float64): a_m, a_s (steps: ms in the preset), d_m, d_s (decays per step), V0."""
     layers = []
     for neuron in model.neurons:
         with torch.no_grad():
@@ -77,13 +77,15 @@ def _kernel_norm(d_m: np.ndarray, d_s: np.ndarray, a_m: np.ndarray, a_s: np.ndar
     return 1.0 / np.maximum(d_m ** k_lo - d_s ** k_lo, d_m ** (k_lo + 1) - d_s ** (k_lo + 1))
 
 
-def cubalif_constants(c: dict[str, np.ndarray], discretisation: str = "exact") -> dict[str, np.ndarray]:
-    """CubaLIF's tau_mem, tau_syn (s), r and w_in per channel for one C-LIF layer's clif_constants entry."""
+def cubalif_constants(c: dict[str, np.ndarray], discretisation: str = "exact", dt: float = DT_S
+                      ) -> dict[str, np.ndarray]:
+    """CubaLIF's tau_mem, tau_syn (s), r and w_in per channel for one C-LIF layer's clif_constants entry, for
+    steps of dt seconds."""
     if discretisation == "exact":
-        tau_mem, tau_syn = c["a_m"] * DT_S, c["a_s"] * DT_S
+        tau_mem, tau_syn = c["a_m"] * dt, c["a_s"] * dt
         r = c["v0"] * (c["a_m"] - c["a_s"])
     elif discretisation == "euler":
-        tau_mem, tau_syn = DT_S / (1.0 - c["d_m"]), DT_S / (1.0 - c["d_s"])
+        tau_mem, tau_syn = dt / (1.0 - c["d_m"]), dt / (1.0 - c["d_s"])
         r = c["v0"] * (c["d_m"] - c["d_s"]) / ((1.0 - c["d_m"]) * (1.0 - c["d_s"]))
     else:
         raise ValueError(f"discretisation must be one of {', '.join(DISCRETISATIONS)}, got {discretisation!r}")
@@ -95,6 +97,7 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
     import nir
 
     cfg = model.cfg
+    dt = cfg.step_us * 1e-6
     sizes = cfg.conv_sizes()
     consts = clif_constants(model)
     nodes: dict = {"input": nir.Input(input_type={"input": np.array([2, cfg.input_size, cfg.input_size])})}
@@ -107,7 +110,7 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
         nodes[name] = nir.Conv2d(input_shape=(in_size, in_size), weight=weight, stride=conv.stride,
                                  padding=conv.padding, dilation=conv.dilation, groups=conv.groups, bias=bias)
         shape = (conv.out_channels, sizes[k], sizes[k])
-        nodes[f"{name}_lif"] = _cubalif(nir, consts[k], shape, model.neurons[k].theta, discretisation)
+        nodes[f"{name}_lif"] = _cubalif(nir, consts[k], shape, model.neurons[k].theta, discretisation, dt)
         chain += [name, f"{name}_lif"]
         in_size = sizes[k]
     last = (cfg.channels[-1], sizes[-1], sizes[-1])
@@ -121,19 +124,19 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
         else:
             nodes[name] = nir.Affine(weight=weight, bias=fc.bias.detach().numpy().astype(np.float32))
         nodes[f"{name}_lif"] = _cubalif(nir, consts[3 + k], (fc.out_features,), model.neurons[3 + k].theta,
-                                        discretisation)
+                                        discretisation, dt)
         chain += [name, f"{name}_lif"]
     nodes["output"] = nir.Output(output_type={"output": np.array([2])})
     chain.append("output")
     edges = list(zip(chain[:-1], chain[1:]))
     metadata = {
         "producer": "dvsot sctn.nir_export",
-        "dt": DT_S,
+        "dt": dt,
         "discretisation": discretisation,
         "reset": "C-LIF subtracts v_threshold after a spike (reset by subtraction); NIR's v_reset = 0 cannot say so",
         "steps": int(cfg.steps),
         "tail_steps": int(cfg.tail_steps),
-        "input": (f"per 1 ms step, channel 0 OFF and 1 ON events inside the candidate box on a {cfg.input_size} x "
+        "input": (f"per step of dt, channel 0 OFF and 1 ON events inside the candidate box on a {cfg.input_size} x "
                   f"{cfg.input_size} canvas centred on it (dvsot sctn.encoding.encode_boxes), 1 where a pixel had "
                   f"an event in the step"),
         "target": f"out_lif neuron {TARGET} (0 is background); its maximum voltage over the steps scores a box",
@@ -142,9 +145,9 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata=metadata)
 
 
-def _cubalif(nir, c: dict[str, np.ndarray], shape: tuple[int, ...], theta: float, discretisation: str):
+def _cubalif(nir, c: dict[str, np.ndarray], shape: tuple[int, ...], theta: float, discretisation: str, dt: float):
     """A CubaLIF node of `shape` whose per-channel constants (first axis) are those of C-LIF layer `c`."""
-    p = cubalif_constants(c, discretisation)
+    p = cubalif_constants(c, discretisation, dt)
     expand = (-1,) + (1,) * (len(shape) - 1)
 
     def full(values) -> np.ndarray:
