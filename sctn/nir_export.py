@@ -12,7 +12,8 @@ stays outside the graph: the graph's input is that canvas, step by step.
 C-LIF (sctn/neurons.py) as CubaLIF, whose NIR equations are tau_syn dI/dt = -I + w_in S and
 tau_mem dv/dt = (v_leak - v) + r I, z = [v > v_threshold], v -> v_reset after a spike. An input spike is
 a value of 1 for one step of dt (an impulse of area dt, as a discrete simulator at dt integrates it; dt is
-the network's step_us, 1 ms in the paper preset and in the formulas below), so a spike at time 0 gives I(t) = w_in dt / tau_syn exp(-t / tau_syn) and
+the network's step_us, 1 ms in the paper preset and in the formulas below), so a spike at time 0 gives
+I(t) = w_in dt / tau_syn exp(-t / tau_syn) and
 
     v(t) = r w_in dt / (tau_mem - tau_syn) (exp(-t / tau_mem) - exp(-t / tau_syn)),
 
