@@ -40,7 +40,8 @@ def compare(ref_spikes: list[np.ndarray], ref_vmax: np.ndarray, spikes: dict[str
         layers[name] = {"dvsot": int(ref.sum()), "other": int(got.sum()), "differ": int((ref != got).sum())}
     dv = np.abs(np.asarray(vmax, np.float64) - ref_vmax)
     best = np.argmax(np.reshape(vmax, (-1, group)), axis=1) == np.argmax(np.reshape(ref_vmax, (-1, group)), axis=1)
-    return {"same_best_candidate": [int(best.sum()), int(best.size)],"layers": layers, "vmax_max_abs_diff": float(dv.max()), "vmax_mean_abs_diff": float(dv.mean()),
+    return {"layers": layers, "vmax_max_abs_diff": float(dv.max()), "vmax_mean_abs_diff": float(dv.mean()),
+            "same_best_candidate": [int(best.sum()), int(best.size)],
             "vmax_beyond_tolerance": int((dv > V_TOLERANCE).sum()), "samples": int(len(dv)),
             "target_fires": [int((ref_vmax >= 0.5).sum()), int((np.asarray(vmax) >= 0.5).sum())]}
 

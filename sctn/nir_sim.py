@@ -58,7 +58,8 @@ def run_graph(graph, x: np.ndarray, dt: float, integrator: Literal["exact", "eul
         if isinstance(node, nir.Output):
             outputs[name] = h
         elif isinstance(node, nir.Conv2d):
-            outputs[name] = conv2d(h.reshape((t * b,) + h.shape[2:]), node).reshape((t, b) + _conv_shape(h.shape[2:], node))
+            y = conv2d(h.reshape((t * b,) + h.shape[2:]), node)
+            outputs[name] = y.reshape((t, b) + y.shape[1:])
         elif isinstance(node, nir.Flatten):
             outputs[name] = flatten(h, node.start_dim, node.end_dim)
         elif isinstance(node, (nir.Linear, nir.Affine)):
@@ -98,12 +99,6 @@ def topological_order(graph) -> list[str]:
 def _pair(v) -> tuple[int, int]:
     a = np.broadcast_to(np.asarray(v, np.int64).reshape(-1), (2,))
     return int(a[0]), int(a[1])
-
-
-def _conv_shape(in_shape: tuple[int, ...], node) -> tuple[int, int, int]:
-    kh, kw = node.weight.shape[-2:]
-    (sh, sw), (ph, pw) = _pair(node.stride), _pair(node.padding)
-    return node.weight.shape[0], (in_shape[1] + 2 * ph - kh) // sh + 1, (in_shape[2] + 2 * pw - kw) // sw + 1
 
 
 def conv2d(x: np.ndarray, node) -> np.ndarray:
