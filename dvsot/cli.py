@@ -21,6 +21,7 @@ COMMANDS: dict[str, str] = {
     "bench": "dvsot.commands.bench",
     "export": "dvsot.commands.export",
     "import": "dvsot.commands.import_",
+    "export-model": "dvsot.commands.export_model",
 }
 
 
