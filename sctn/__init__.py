@@ -2,7 +2,7 @@
 
 Public names (each imported on first use): the model `SCTN` and its `NetworkConfig`, the tracker
 `SCTNTracker` and its `SCTNParams`, training (`train`, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
-`save_checkpoint`).
+`save_checkpoint`), and NIR export (`export_nir`, `sctn_graph`: docs/nir.md).
 """
 
 from dvsot.lazy import lazy_attributes
@@ -17,6 +17,8 @@ _API = {
     "finetune": "sctn.finetune",
     "load_checkpoint": "sctn.checkpoint",
     "save_checkpoint": "sctn.checkpoint",
+    "export_nir": "sctn.nir_export",
+    "sctn_graph": "sctn.nir_export",
 }
 __all__ = list(_API)
 __getattr__, __dir__ = lazy_attributes(__name__, _API)

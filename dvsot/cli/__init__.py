@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "bench": "dvsot.cli.bench",
     "export": "dvsot.cli.export",
     "import": "dvsot.cli.import_",
+    "export-model": "dvsot.cli.export_model",
 }
 
 
