@@ -1,0 +1,333 @@
+"""The DVS pixel beyond ESIM's ideal one: photoreceptor, bandwidth, noise, latency and readout, as stages.
+
+Each stage is a group of EventParams fields (physical units in their names) that is off at its default;
+with every stage off (the `ideal` model) dvsot.events.EventSimulator runs alone and gives today's ESIM
+events. With any stage on, a SensorModel wraps the simulator, in signal order:
+
+1. Photoreceptor (`linlog_intensity`): linear below that intensity (1 = full scale), log above, joined
+   with matching value and slope (v2e's lin-log joins a line through the origin at 20 DN).
+2. Low-pass (`lowpass_order` 1 or 2, `lowpass_cutoff_hz` at full-scale intensity): v2e's IIR update
+   once a frame, state += eps * (input - state) with eps = min(1, inten01 * dt / tau), tau = 1 / (2 pi
+   f3dB) and inten01 = (I + dark) / (1 + dark), `dark_intensity` being the dark current's equivalent
+   intensity: dim pixels lag. Order 2 cascades two such stages.
+3. The level-crossing kernel on the filtered log signal, with today's thresholds, mismatch and
+   refractory period.
+4. Noise, flagged signal = False with its kind (event_batch.NOISE_KINDS); none moves the reference:
+   shot noise at `shot_noise_hz` per pixel in the dark, scaled by (f - 1) * inten01 + 1 with
+   f = `shot_noise_bright_factor` (v2e's shot-noise intensity factor), random polarity, Poisson;
+   leak ON events at `leak_hz` per pixel, each pixel's rate log-normal around it
+   (`leak_spread_decades`: the std of log10 of the rate) and its periods gamma-distributed with
+   coefficient of variation `leak_period_cv` (1: Poisson, as the ideal model; 0: periodic);
+   hot pixels (`hot_pixel_fraction` of the pixels, drawn once) firing ON at `hot_pixel_hz`, Poisson.
+5. Latency: every event's timestamp is delayed by `latency_us` plus Gaussian jitter of std
+   `latency_jitter_us` (a delay is never negative); events are re-sorted by time.
+6. Readout: an arbiter passing at most `readout_limit_hz` events a second, first come first served;
+   an event waits for the one before it, and with `readout_fifo_events` N > 0 an event that finds N
+   events waiting is dropped (counted). 0 waits as long as it takes.
+
+Events delayed past the current frame are held and handed out with a later frame, so every batch
+stays time-ordered; those still held after the last frame are counted as `held_at_end`. All state is
+per pixel (or per held event): memory does not grow with the number of frames.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+from dvsot.errors import UserError
+from dvsot.event_batch import NOISE_KINDS, EventBatch
+
+if TYPE_CHECKING:
+    from dvsot.events import EventParams, EventSimulator
+
+SHOT, LEAK, HOT = (NOISE_KINDS.index(k) for k in ("shot", "leak", "hot"))
+V2E_DARK = 20.0 / 255.0  # v2e's intensity offset, 20 DN of 255: its lin-log knee and its inten01 = (DN + 20) / 275
+
+# The fields of the stages, each off at its default: the `ideal` model sets none of them.
+SENSOR_FIELDS = ("linlog_intensity", "lowpass_order", "lowpass_cutoff_hz", "shot_noise_bright_factor",
+                 "leak_spread_decades", "leak_period_cv", "hot_pixel_fraction", "hot_pixel_hz", "latency_us",
+                 "latency_jitter_us", "readout_limit_hz")
+
+# Presets: the EventParams fields each one sets (the others keep their defaults); sources in docs/events.md.
+PRESETS: dict[str, dict] = {
+    "ideal": {},
+    # v2e's --dvs_params clean (v2ecore/emulator.py, set_dvs_params), with its lin-log photoreceptor
+    "clean": dict(cp=0.2, cn=0.2, sigma_cp=0.02, sigma_cn=0.02, linlog_intensity=V2E_DARK),
+    # v2e's --dvs_params noisy; its leak jitter is per frame on the leak current, which leaves periods
+    # nearly regular: a period CV of 0.1 here
+    "noisy": dict(cp=0.2, cn=0.2, sigma_cp=0.05, sigma_cn=0.05, linlog_intensity=V2E_DARK, lowpass_order=1,
+                  lowpass_cutoff_hz=30.0, shot_noise_hz=5.0, shot_noise_bright_factor=0.25, leak_hz=0.1,
+                  leak_spread_decades=0.1, leak_period_cv=0.1),
+    # iniVation DAVIS346: contrast sensitivity 14.3 % ON / 22.5 % OFF, 12 Meps readout, ~20 us latency
+    "davis346": dict(cp=0.134, cn=0.203, sigma_cp=0.03, sigma_cn=0.03, linlog_intensity=V2E_DARK, lowpass_order=1,
+                     lowpass_cutoff_hz=300.0, refractory_us=100.0, shot_noise_hz=0.5, shot_noise_bright_factor=0.25,
+                     leak_hz=0.1, leak_spread_decades=0.1, leak_period_cv=0.1, hot_pixel_fraction=1e-4,
+                     hot_pixel_hz=100.0, latency_us=20.0, latency_jitter_us=10.0, readout_limit_hz=12e6,
+                     readout_fifo_events=4096),
+    # Prophesee Gen4 class (Gen4 CD / IMX636, 1280x720): 1.066 Geps readout; IEBCS's latency and jitter
+    "gen4": dict(cp=0.22, cn=0.22, sigma_cp=0.03, sigma_cn=0.03, linlog_intensity=V2E_DARK, lowpass_order=1,
+                 lowpass_cutoff_hz=1000.0, refractory_us=50.0, shot_noise_hz=0.1, shot_noise_bright_factor=0.25,
+                 leak_hz=0.05, leak_spread_decades=0.2, leak_period_cv=0.1, hot_pixel_fraction=1e-5,
+                 hot_pixel_hz=100.0, latency_us=200.0, latency_jitter_us=50.0, readout_limit_hz=1.066e9,
+                 readout_fifo_events=16384),
+}
+
+
+def sensor_on(params: "EventParams") -> bool:
+    """True if any stage beyond the ideal model is on (then EventSimulator runs inside a SensorModel)."""
+    fields = type(params).model_fields
+    return any(getattr(params, name) != fields[name].default for name in SENSOR_FIELDS)
+
+
+def expand_preset(values: dict) -> dict:
+    """The preset named in values ('ideal' if none) under the values given: each given field overrides the preset's."""
+    name = values.get("preset", "ideal")
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+    return {**PRESETS[name], **values}
+
+
+@numba.njit(cache=True, nogil=True)
+def front_end(L, out, lp1, lp2, first, linlog_intensity, log_eps, order, dt_over_tau, dark):
+    """Photoreceptor and low-pass of one frame: L (log(I + eps), flat float64) -> out, the low-pass state in lp1, lp2.
+
+    first: the state starts at the input (steady state). dt_over_tau: the frame interval over the time
+    constant at full-scale intensity; the step of a pixel is min(1, (I + dark) / (1 + dark) * dt_over_tau).
+    """
+    knee_log = math.log(linlog_intensity + log_eps) if linlog_intensity > 0.0 else 0.0
+    knee_slope = 1.0 / (linlog_intensity + log_eps)
+    for i in range(L.shape[0]):
+        v = L[i]
+        inten = max(math.exp(v) - log_eps, 0.0)
+        if inten < linlog_intensity:  # linear below the knee, tangent to the log at it
+            v = knee_log + (inten - linlog_intensity) * knee_slope
+        if order > 0:
+            if first:
+                lp1[i] = v
+                if order == 2:
+                    lp2[i] = v
+            else:
+                e = min(1.0, (inten + dark) / (1.0 + dark) * dt_over_tau)
+                lp1[i] += e * (v - lp1[i])
+                if order == 2:
+                    lp2[i] += e * (lp1[i] - lp2[i])
+            v = lp1[i] if order == 1 else lp2[i]
+        out[i] = v
+
+
+@numba.njit(cache=True, nogil=True)
+def readout(t_in, period_us, fifo, state):
+    """The arbiter over time-ordered arrival times t_in (int us): (kept mask, output times, dropped count).
+
+    state[0] is the time (float us) the arbiter is free again, carried between calls. An event is read
+    at max(arrival, free) and keeps the arbiter for period_us; with fifo > 0 one that arrives while fifo
+    events wait (arrived, not yet read) is dropped.
+    """
+    n = t_in.shape[0]
+    keep = np.ones(n, np.bool_)
+    t_out = np.empty(n, np.int64)
+    free = state[0]
+    dropped = 0
+    for j in range(n):
+        t = float(t_in[j])
+        start = max(t, free)
+        if fifo > 0 and start > t:
+            waiting = math.ceil((start - t) / period_us - 1e-9) - 1  # read after this arrival, before this event
+            if waiting >= fifo:
+                keep[j] = False
+                dropped += 1
+                t_out[j] = t_in[j]
+                continue
+        t_out[j] = np.int64(math.floor(start + 0.5))
+        free = start + period_us
+    state[0] = free
+    return keep, t_out, dropped
+
+
+class Renewal:
+    """Per-pixel renewal processes (leak, hot pixels): event times with gamma periods of a given rate and CV."""
+
+    def __init__(self, pixels: np.ndarray, rate_hz: np.ndarray, cv: float, rng: np.random.Generator) -> None:
+        self.pixels, self.rate_hz, self.cv, self._rng = pixels, rate_hz, float(cv), rng
+        self._next_us = np.empty(0)
+
+    def _periods_us(self, idx: np.ndarray, length_biased: bool = False) -> np.ndarray:
+        """Periods (us) of the processes idx: gamma of mean 1 / rate and CV cv (length-biased: shape + 1)."""
+        mean = 1e6 / self.rate_hz[idx]
+        if self.cv == 0:
+            return mean
+        shape = 1.0 / self.cv ** 2
+        return self._rng.gamma(shape + (1.0 if length_biased else 0.0), 1.0 / shape, idx.size) * mean
+
+    def start(self, t_us: float) -> None:
+        """Stationary start at t_us: the time to each first event is the residual of a length-biased period."""
+        idx = np.arange(self.pixels.size)
+        self._next_us = t_us + self._rng.random(idx.size) * self._periods_us(idx, length_biased=True)
+
+    def events(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """(pixel, float us time) of the events up to t1, the processes moved past t1."""
+        pix, times = [], []
+        due = np.flatnonzero(self._next_us <= t1)
+        while due.size:
+            pix.append(self.pixels[due])
+            times.append(self._next_us[due])
+            self._next_us[due] += self._periods_us(due)
+            due = due[self._next_us[due] <= t1]
+        if not pix:
+            return np.empty(0, np.int64), np.empty(0)
+        return np.concatenate(pix).astype(np.int64), np.concatenate(times)
+
+
+class SensorModel:
+    """The stages around an EventSimulator: frames in (as EventSimulator.step takes them), time-ordered events out."""
+
+    def __init__(self, sim: "EventSimulator", seed: int) -> None:
+        self.sim, self.params = sim, sim.params
+        p, n = self.params, sim.width * sim.height
+        rng_leak, rng_shot, rng_hot, rng_time = (np.random.default_rng(s) for s in
+                                                 np.random.SeedSequence(int(seed)).spawn(6)[2:])
+        self._rng_shot, self._rng_time = rng_shot, rng_time
+        self._lp1 = np.empty(n) if p.lowpass_order else np.empty(0)
+        self._lp2 = np.empty(n) if p.lowpass_order == 2 else np.empty(0)
+        self._raw = np.empty(n)
+        self._out = np.empty(n)
+        self._t_prev: int | None = None
+        self._leak = self._hot = None
+        if p.leak_hz > 0:
+            rate = np.full(n, p.leak_hz)
+            if p.leak_spread_decades > 0:
+                rate *= 10.0 ** (p.leak_spread_decades * rng_leak.standard_normal(n))
+            self._leak = Renewal(np.arange(n), rate, p.leak_period_cv, rng_leak)
+        n_hot = int(round(p.hot_pixel_fraction * n))
+        if n_hot and p.hot_pixel_hz > 0:
+            hot = np.sort(rng_hot.choice(n, n_hot, replace=False))
+            self._hot = Renewal(hot, np.full(n_hot, p.hot_pixel_hz), 1.0, rng_hot)
+        self._held = _with_kinds(EventBatch.empty())  # delayed past the last frame, not yet at the arbiter
+        self._read = _with_kinds(EventBatch.empty())  # read out for after the last frame
+        self._arbiter = np.zeros(1)
+        self.dropped = 0
+
+    @property
+    def held(self) -> int:
+        """Events delayed past the last frame so far (latency or readout), not handed out yet."""
+        return len(self._held) + len(self._read)
+
+    def _log(self, frame, is_log: bool) -> np.ndarray:
+        """The frame as flat float64 log intensity log(I + log_eps), checked as the simulator checks it."""
+        from dvsot.events import CodedFrame, log_intensity
+
+        sim = self.sim
+        if isinstance(frame, CodedFrame):
+            return np.take(frame.table, sim._codes(frame), out=self._raw)
+        a = np.asarray(frame)
+        if a.shape != (sim.height, sim.width):
+            raise UserError(f"frame has shape {a.shape}, expected ({sim.height}, {sim.width})")
+        if a.dtype.kind not in "fiu":
+            raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
+        if not is_log:
+            return log_intensity(a, self.params.log_eps, self._raw)
+        np.copyto(self._raw, a.reshape(-1), casting="unsafe")
+        if not np.isfinite(self._raw.sum()):
+            raise UserError("frame contains NaN or infinite values")
+        return self._raw
+
+    def step(self, frame, t_us: int, is_log: bool = False) -> EventBatch:
+        """Events handed out up to t_us (microseconds): signal and noise of the interval, delayed and read out."""
+        p, sim = self.params, self.sim
+        t_us = int(t_us)
+        if self._t_prev is not None and t_us <= self._t_prev:
+            raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
+        raw = self._log(frame, is_log)
+        first = self._t_prev is None
+        dt_over_tau = 0.0 if first else (t_us - self._t_prev) * 1e-6 * 2 * math.pi * p.lowpass_cutoff_hz
+        front_end(raw, self._out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
+                  dt_over_tau, p.dark_intensity)
+        signal = sim.step(self._out.reshape(sim.height, sim.width), t_us, is_log=True)
+        if first:
+            self._t_prev = t_us
+            for proc in (self._leak, self._hot):
+                if proc is not None:
+                    proc.start(t_us)
+            return _with_kinds(EventBatch.empty())
+        t0, self._t_prev = self._t_prev, t_us
+        batch = self._merge(signal, self._noise(raw, t0, t_us))
+        return self._deliver(batch, t_us)
+
+    def _noise(self, raw: np.ndarray, t0: int, t1: int) -> list[tuple[np.ndarray, ...]]:
+        """Shot, leak and hot-pixel events in (t0, t1] as (pixel, float us, polarity, kind) parts."""
+        p, n = self.params, raw.size
+        parts = []
+        if p.shot_noise_hz > 0:
+            rng, f = self._rng_shot, p.shot_noise_bright_factor
+            top = max(1.0, f)  # the largest factor over intensities: drawn at that rate, thinned per pixel
+            k = rng.poisson(p.shot_noise_hz * top * n * (t1 - t0) * 1e-6)
+            pix = rng.integers(0, n, k)
+            times = t1 - rng.random(k) * (t1 - t0)  # in (t0, t1]
+            pol = rng.random(k) < 0.5
+            if f != 1.0:
+                inten = np.maximum(np.exp(raw[pix]) - p.log_eps, 0.0)
+                inten01 = np.minimum((inten + p.dark_intensity) / (1.0 + p.dark_intensity), 1.0)
+                keep = rng.random(k) * top < (f - 1.0) * inten01 + 1.0
+                pix, times, pol = pix[keep], times[keep], pol[keep]
+            parts.append((pix, times, pol, SHOT))
+        for proc, kind in ((self._leak, LEAK), (self._hot, HOT)):
+            if proc is not None:
+                pix, times = proc.events(float(t1))
+                parts.append((pix, times, np.ones(pix.size, bool), kind))
+        return parts
+
+    def _merge(self, signal: EventBatch, noise: list[tuple[np.ndarray, ...]]) -> EventBatch:
+        """Signal events and noise parts as one batch sorted by (time, pixel), signal first among equals."""
+        w = self.sim.width
+        kinds = [np.zeros(len(signal), np.uint8)] + [np.full(part[0].size, part[3], np.uint8) for part in noise]
+        pix = np.concatenate([signal.y.astype(np.int64) * w + signal.x] + [part[0] for part in noise])
+        t = np.concatenate([signal.t] + [np.rint(part[1]).astype(np.int64) for part in noise])
+        pol = np.concatenate([signal.p] + [part[2].astype(np.uint8) for part in noise])
+        kind = np.concatenate(kinds)
+        if len(t) > len(signal):
+            order = np.lexsort((pix, t))  # stable: signal (first in the arrays) before noise at equal keys
+            pix, t, pol, kind = pix[order], t[order], pol[order], kind[order]
+        return EventBatch((pix % w).astype(np.uint16), (pix // w).astype(np.uint16), t, pol, kind == 0, kind)
+
+    def _deliver(self, batch: EventBatch, t1: int) -> EventBatch:
+        """Latency and readout applied to the interval's events; those at or before t1 (us) handed out, the rest held."""
+        p = self.params
+        if p.latency_us > 0 or p.latency_jitter_us > 0:
+            delay = np.full(len(batch), p.latency_us)
+            if p.latency_jitter_us > 0:
+                delay = np.maximum(delay + p.latency_jitter_us * self._rng_time.standard_normal(len(batch)), 0.0)
+            batch = EventBatch(batch.x, batch.y, batch.t + np.rint(delay).astype(np.int64), batch.p, batch.signal,
+                               batch.noise_kind)
+            joined = EventBatch.concatenate([self._held, batch])
+            if p.latency_jitter_us > 0 or len(self._held):
+                order = np.lexsort((joined.y.astype(np.int64) * self.sim.width + joined.x, joined.t))
+                joined = joined.select(order)
+            cut = int(np.searchsorted(joined.t, t1, side="right"))
+            batch, self._held = joined.select(slice(0, cut)), joined.select(slice(cut, None))
+        if p.readout_limit_hz > 0:
+            keep, t_out, dropped = readout(batch.t, 1e6 / p.readout_limit_hz, int(p.readout_fifo_events),
+                                           self._arbiter)
+            self.dropped += int(dropped)
+            batch = EventBatch(batch.x, batch.y, t_out, batch.p, batch.signal, batch.noise_kind)
+            if dropped:
+                batch = batch.select(keep)
+            joined = EventBatch.concatenate([self._read, batch])
+            cut = int(np.searchsorted(joined.t, t1, side="right"))
+            batch, self._read = joined.select(slice(0, cut)), joined.select(slice(cut, None))
+        return batch
+
+    def counts(self) -> dict:
+        """What the readout dropped and what is still held after the last frame (events)."""
+        return {"readout_dropped": int(self.dropped), "held_at_end": int(self.held)}
+
+
+def _with_kinds(batch: EventBatch) -> EventBatch:
+    """The batch with signal flags and noise kinds (all signal if it had none)."""
+    n = len(batch)
+    sig = batch.signal if batch.signal is not None else np.ones(n, bool)
+    kind = batch.noise_kind if batch.noise_kind is not None else np.where(sig, 0, SHOT).astype(np.uint8)
+    return EventBatch(batch.x, batch.y, batch.t, batch.p, sig, kind)
