@@ -136,22 +136,24 @@ def param_problem(exc: ValidationError, names: dict[str, str] | None = None) -> 
     """One line for the first error of an EventParams validation: the field (or its flag in names), unit and range."""
     err = exc.errors()[0]
     loc = [str(p) for p in err["loc"]]
-    if not loc:  # a model-level check: its message names the field, unit and range itself
+    if not loc:  # a model-level check (a preset, the low-pass, the readout): its message names the field itself
         msg = str(err["msg"]).removeprefix("Value error, ")
-        for field, flag in (names or {}).items():
-            msg = msg.replace(field, flag, 1) if msg.startswith(field) else msg
-        return msg
-    field = loc[-1]
-    info = EventParams.model_fields.get(field)
-    name = (names or {}).get(field, f"field '{'.'.join(loc)}'")
-    value = err.get("input")
-    if info is None:
-        return f"{name}: {err['msg']}"
+        field = msg.split(" ", 1)[0]
+        return (names or {}).get(field, field) + msg[len(field):] if field in (names or {}) else msg
+    if names and loc[-1] in names:  # a flag: its value as given
+        return f"{names[loc[-1]]} {err.get('input')!r}: {field_message(err)}"
+    return f"field '{'.'.join(loc)}': {field_message(err)}"
+
+
+def field_message(err: dict) -> str:
+    """What an EventParams field's validation error err (pydantic's) asks for: its range and, in brackets, its unit."""
+    info = EventParams.model_fields.get(str(err["loc"][-1])) if err["loc"] else None
+    if info is None or err["type"] not in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        return str(err["msg"]).removeprefix("Value error, ")
     bounds = [f"{op} {getattr(m, attr):g}" for m in info.metadata for attr, op in
               (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")) if getattr(m, attr, None) is not None]
-    unit = f" ({info.description})" if info.description else ""
-    allowed = f"must be {' and '.join(bounds)}" if bounds else str(err["msg"])
-    return f"{name} {value!r}: {allowed}{unit}"
+    unit = f"; {info.description}" if info.description else ""
+    return f"{err['msg']} (range {' and '.join(bounds)}{unit})"
 
 
 class EventSimulator:

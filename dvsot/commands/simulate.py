@@ -4,6 +4,7 @@ Examples:
   dvsot simulate frames/ --fps 1000 -o out/frames.h5
   dvsot simulate clip.mp4 -o out/clip.h5 --srgb --cp 0.25 --cn 0.25 --sigma 0.03
   dvsot simulate stack.npy --timestamps times.txt -o out/stack.h5 --refractory-us 100
+  dvsot simulate frames/ --fps 1000 -o out/frames.h5 --preset davis346 --leak-hz 0.5
 """
 
 from __future__ import annotations
@@ -20,15 +21,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     timing = p.add_mutually_exclusive_group()
     timing.add_argument("--fps", type=float, help="frame rate (frames per second); default: the video's own")
     timing.add_argument("--timestamps", help="file of timestamps in seconds, one per line (as ESIM reads them)")
-    p.add_argument("--cp", type=float, default=0.2, help="ON contrast threshold, log intensity (default 0.2)")
-    p.add_argument("--cn", type=float, default=0.2, help="OFF contrast threshold, log intensity (default 0.2)")
-    p.add_argument("--sigma", type=float, default=0.0, help="per-pixel threshold std, log intensity (default 0)")
-    p.add_argument("--mismatch", choices=["fixed", "per_interval"], default="fixed",
+    from dvsot.sensor import PRESETS
+
+    p.add_argument("--preset", choices=list(PRESETS), default=None,
+                   help="sensor model the other simulator flags start from (default ideal: ESIM's pixel)")
+    # each simulator flag left out keeps the preset's value
+    p.add_argument("--cp", type=float, help="ON contrast threshold, log intensity (ideal: 0.2)")
+    p.add_argument("--cn", type=float, help="OFF contrast threshold, log intensity (ideal: 0.2)")
+    p.add_argument("--sigma", type=float, help="per-pixel threshold std, log intensity (ideal: 0)")
+    p.add_argument("--mismatch", choices=["fixed", "per_interval"],
                    help="draw per-pixel thresholds once (fixed) or every interval, as ESIM (per_interval)")
-    p.add_argument("--refractory-us", type=float, default=0.0, help="refractory period, microseconds (default 0)")
-    p.add_argument("--log-eps", type=float, default=1e-3, help="eps in log(I + eps) (default 1e-3)")
-    p.add_argument("--shot-noise-hz", type=float, default=0.0, help="shot-noise events per pixel per second")
-    p.add_argument("--leak-hz", type=float, default=0.0, help="leak events per pixel per second")
+    p.add_argument("--refractory-us", type=float, help="refractory period, microseconds (ideal: 0)")
+    p.add_argument("--log-eps", type=float, help="eps in log(I + eps) (default 1e-3)")
+    p.add_argument("--shot-noise-hz", type=float, help="shot-noise events per pixel per second (ideal: 0)")
+    p.add_argument("--leak-hz", type=float, help="leak events per pixel per second (ideal: 0)")
+    for field in _STAGE_FLAGS:
+        info = _field_info(field)
+        kind = int if info.annotation is int or field == "lowpass_order" else float
+        p.add_argument("--" + field.replace("_", "-"), type=kind, help=f"{info.description} (ideal: {info.default:g})")
     p.add_argument("--srgb", action="store_true", help="undo the sRGB curve of 8/16-bit input before use")
     p.add_argument("--seed", type=int, default=0, help="random seed (thresholds, noise)")
     p.add_argument("--segment-us", type=int, default=SEGMENT_US,
@@ -37,28 +47,39 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+# the sensor model's fields (dvsot.sensor), each with a flag of its name
+_STAGE_FLAGS = ("linlog_intensity", "lowpass_order", "lowpass_cutoff_hz", "dark_intensity", "shot_noise_bright_factor",
+                "leak_spread_decades", "leak_period_cv", "hot_pixel_fraction", "hot_pixel_hz", "latency_us",
+                "latency_jitter_us", "readout_limit_hz", "readout_fifo_events")
 # EventParams field -> the flag that sets it, so that a bad value is reported by its flag
 _PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
                 "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
-                "leak_hz": "--leak-hz"}
+                "leak_hz": "--leak-hz", "preset": "--preset",
+                **{field: "--" + field.replace("_", "-") for field in _STAGE_FLAGS}}
+
+
+def _field_info(field: str):
+    from dvsot.events import EventParams
+
+    return EventParams.model_fields[field]
 
 
 def _event_params(args: argparse.Namespace):
-    """The simulator parameters from the flags; a bad value raises UserError naming its flag."""
+    """The simulator parameters from the flags over the preset's; a bad value raises UserError naming its flag."""
     from pydantic import ValidationError
 
     from dvsot.errors import UserError
-    from dvsot.events import EventParams
+    from dvsot.events import EventParams, param_problem
 
-    values = dict(cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma, mismatch=args.mismatch,
-                  refractory_us=args.refractory_us, log_eps=args.log_eps, shot_noise_hz=args.shot_noise_hz,
-                  leak_hz=args.leak_hz)
+    values = dict(preset=args.preset, cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
+                  mismatch=args.mismatch, refractory_us=args.refractory_us, log_eps=args.log_eps,
+                  shot_noise_hz=args.shot_noise_hz, leak_hz=args.leak_hz,
+                  **{field: getattr(args, field) for field in _STAGE_FLAGS})
+    values = {k: v for k, v in values.items() if v is not None}
     try:
         return EventParams(**values)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = str(err["loc"][0]) if err["loc"] else "?"
-        raise UserError(f"{_PARAM_FLAGS.get(field, field)} {values.get(field)}: {err['msg']}") from None
+        raise UserError(param_problem(exc, _PARAM_FLAGS)) from None
 
 
 def _check_flags(args: argparse.Namespace) -> None:
