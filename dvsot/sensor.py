@@ -87,7 +87,7 @@ def expand_preset(values: dict) -> dict:
     """The preset named in values ('ideal' if none) under the values given: each given field overrides the preset's."""
     name = values.get("preset", "ideal")
     if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+        raise ValueError(f"preset {name!r} is unknown (known: {', '.join(PRESETS)})")
     return {**PRESETS[name], **values}
 
 

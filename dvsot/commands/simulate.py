@@ -23,8 +23,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     timing.add_argument("--timestamps", help="file of timestamps in seconds, one per line (as ESIM reads them)")
     from dvsot.sensor import PRESETS
 
-    p.add_argument("--preset", choices=list(PRESETS), default=None,
-                   help="sensor model the other simulator flags start from (default ideal: ESIM's pixel)")
+    p.add_argument("--preset", help=f"sensor model the other simulator flags start from: {', '.join(PRESETS)} "
+                                    "(default ideal: ESIM's pixel)")
     # each simulator flag left out keeps the preset's value
     p.add_argument("--cp", type=float, help="ON contrast threshold, log intensity (ideal: 0.2)")
     p.add_argument("--cn", type=float, help="OFF contrast threshold, log intensity (ideal: 0.2)")
