@@ -232,3 +232,13 @@ def test_scene_files_name_a_preset_and_override_its_fields():
         parse_scene(MINIMAL_SCENE + "events: {preset: foo}\n")
     with pytest.raises(UserError, match=r"events.hot_pixel_fraction.*range >= 0 and <= 1"):
         parse_scene(MINIMAL_SCENE + "events: {hot_pixel_fraction: 2}\n")
+
+
+def test_every_sensor_field_has_a_simulate_flag():
+    from dvsot.commands.simulate import _STAGE_FLAGS
+    from dvsot.sensor import SENSOR_FIELDS
+
+    stage_fields = set(EventParams.model_fields) - set(EventParams.model_fields).intersection(
+        ["cp", "cn", "sigma_cp", "sigma_cn", "min_threshold", "mismatch", "refractory_us", "log_eps",
+         "shot_noise_hz", "leak_hz", "preset"])
+    assert set(SENSOR_FIELDS) <= stage_fields == set(_STAGE_FLAGS)

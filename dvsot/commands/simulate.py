@@ -21,10 +21,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     timing = p.add_mutually_exclusive_group()
     timing.add_argument("--fps", type=float, help="frame rate (frames per second); default: the video's own")
     timing.add_argument("--timestamps", help="file of timestamps in seconds, one per line (as ESIM reads them)")
-    from dvsot.sensor import PRESETS
-
-    p.add_argument("--preset", help=f"sensor model the other simulator flags start from: {', '.join(PRESETS)} "
-                                    "(default ideal: ESIM's pixel)")
+    p.add_argument("--preset", help="sensor model the other simulator flags start from: ideal (default, ESIM's "
+                                    "pixel), clean, noisy (v2e's), davis346, gen4 (docs/events.md)")
     # each simulator flag left out keeps the preset's value
     p.add_argument("--cp", type=float, help="ON contrast threshold, log intensity (ideal: 0.2)")
     p.add_argument("--cn", type=float, help="OFF contrast threshold, log intensity (ideal: 0.2)")
@@ -35,10 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--log-eps", type=float, help="eps in log(I + eps) (default 1e-3)")
     p.add_argument("--shot-noise-hz", type=float, help="shot-noise events per pixel per second (ideal: 0)")
     p.add_argument("--leak-hz", type=float, help="leak events per pixel per second (ideal: 0)")
-    for field in _STAGE_FLAGS:
-        info = _field_info(field)
-        kind = int if info.annotation is int or field == "lowpass_order" else float
-        p.add_argument("--" + field.replace("_", "-"), type=kind, help=f"{info.description} (ideal: {info.default:g})")
+    for field, (kind, text) in _STAGE_FLAGS.items():
+        p.add_argument("--" + field.replace("_", "-"), type=kind, help=text)
     p.add_argument("--srgb", action="store_true", help="undo the sRGB curve of 8/16-bit input before use")
     p.add_argument("--seed", type=int, default=0, help="random seed (thresholds, noise)")
     p.add_argument("--segment-us", type=int, default=SEGMENT_US,
@@ -47,21 +43,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-# the sensor model's fields (dvsot.sensor), each with a flag of its name
-_STAGE_FLAGS = ("linlog_intensity", "lowpass_order", "lowpass_cutoff_hz", "dark_intensity", "shot_noise_bright_factor",
-                "leak_spread_decades", "leak_period_cv", "hot_pixel_fraction", "hot_pixel_hz", "latency_us",
-                "latency_jitter_us", "readout_limit_hz", "readout_fifo_events")
+# the sensor model's fields (dvsot.sensor), each with a flag of its name: its type and help (numpy and numba
+# are not imported for --help)
+_STAGE_FLAGS = {
+    "linlog_intensity": (float, "intensity (1 = full scale) below which the photoreceptor is linear (ideal: 0, log)"),
+    "lowpass_order": (int, "photoreceptor low-pass stages: 0 (ideal), 1 or 2"),
+    "lowpass_cutoff_hz": (float, "low-pass 3 dB cutoff at full-scale intensity, Hz"),
+    "dark_intensity": (float, "dark current as an intensity (1 = full scale; default 20/255, v2e's)"),
+    "shot_noise_bright_factor": (float, "shot-noise rate at full-scale intensity over the rate in the dark "
+                                        "(ideal: 1)"),
+    "leak_spread_decades": (float, "std of log10 of the pixels' leak rates, decades (ideal: 0)"),
+    "leak_period_cv": (float, "coefficient of variation of leak periods (ideal: 1, Poisson; 0 periodic)"),
+    "hot_pixel_fraction": (float, "fraction of pixels that are hot, 0..1 (ideal: 0)"),
+    "hot_pixel_hz": (float, "events per second of a hot pixel"),
+    "latency_us": (float, "delay of every event, microseconds (ideal: 0)"),
+    "latency_jitter_us": (float, "std of the delay, microseconds (ideal: 0)"),
+    "readout_limit_hz": (float, "events per second the readout passes (ideal: 0, unlimited; else >= 1)"),
+    "readout_fifo_events": (int, "events waiting for the readout before new ones are dropped (0: none dropped)"),
+}
 # EventParams field -> the flag that sets it, so that a bad value is reported by its flag
 _PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
                 "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
                 "leak_hz": "--leak-hz", "preset": "--preset",
                 **{field: "--" + field.replace("_", "-") for field in _STAGE_FLAGS}}
-
-
-def _field_info(field: str):
-    from dvsot.events import EventParams
-
-    return EventParams.model_fields[field]
 
 
 def _event_params(args: argparse.Namespace):
