@@ -119,6 +119,34 @@ def front_end(L, out, lp1, lp2, first, linlog_intensity, log_eps, order, dt_over
         out[i] = v
 
 
+def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.ndarray:
+    """The photoreceptor's output for log intensities L = log(I + log_eps): L above the lin-log knee, its tangent below."""
+    if linlog_intensity <= 0:
+        return L
+    inten = np.maximum(np.exp(L) - log_eps, 0.0)
+    knee = linlog_intensity + log_eps
+    return np.where(inten < linlog_intensity, np.log(knee) + (inten - linlog_intensity) / knee, L)
+
+
+@numba.njit(cache=True, nogil=True)
+def coded_front_end(codes, plog, inten01, out, lp1, lp2, first, order, dt_over_tau):
+    """front_end for a frame of integer codes: plog[c] the photoreceptor's output and inten01[c] the relative
+    intensity of code c (tables made once per code table), the low-pass as front_end's."""
+    for i in range(codes.shape[0]):
+        c = codes[i]
+        v = plog[c]
+        if first:
+            lp1[i] = v
+            if order == 2:
+                lp2[i] = v
+        else:
+            e = min(1.0, inten01[c] * dt_over_tau)
+            lp1[i] += e * (v - lp1[i])
+            if order == 2:
+                lp2[i] += e * (lp1[i] - lp2[i])
+        out[i] = lp1[i] if order == 1 else lp2[i]
+
+
 @numba.njit(cache=True, nogil=True)
 def readout(t_in, period_us, fifo, state):
     """The arbiter over time-ordered arrival times t_in (int us): (kept mask, output times, dropped count).
@@ -194,7 +222,10 @@ class SensorModel:
         self._lp1 = np.empty(n) if p.lowpass_order else np.empty(0)
         self._lp2 = np.empty(n) if p.lowpass_order == 2 else np.empty(0)
         self._raw = np.empty(n)
-        self._out = np.empty(n)
+        self._outs = (np.empty(n), np.empty(n))  # the simulator keeps the previous one: written in turn
+        self._frames = 0
+        self._tables: tuple = (None,)  # (code table, photoreceptor table, inten01 table, intensity table)
+        self._inten_now: tuple = (None, None)  # (codes, intensity table) or (log intensities, None) of this frame
         self._t_prev: int | None = None
         self._leak = self._hot = None
         if p.leak_hz > 0:
@@ -241,12 +272,28 @@ class SensorModel:
         t_us = int(t_us)
         if self._t_prev is not None and t_us <= self._t_prev:
             raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
-        raw = self._log(frame, is_log)
         first = self._t_prev is None
         dt_over_tau = 0.0 if first else (t_us - self._t_prev) * 1e-6 * 2 * math.pi * p.lowpass_cutoff_hz
-        front_end(raw, self._out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
-                  dt_over_tau, p.dark_intensity)
-        signal = sim.step(self._out.reshape(sim.height, sim.width), t_us, is_log=True)
+        from dvsot.events import CodedFrame
+
+        if isinstance(frame, CodedFrame):  # by code tables: no log or exp per pixel
+            codes = sim._codes(frame)
+            plog, inten01, inten = self._code_tables(frame.table)
+            self._inten_now = (codes, inten)
+            if p.lowpass_order == 0:  # the photoreceptor alone is another code table: the simulator's coded path
+                signal = sim.step(CodedFrame(codes.reshape(sim.height, sim.width), plog), t_us)
+            else:
+                out = self._outs[self._frames % 2]
+                coded_front_end(codes, plog, inten01, out, self._lp1, self._lp2, first, p.lowpass_order, dt_over_tau)
+                signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+        else:
+            raw = self._log(frame, is_log)
+            self._inten_now = (raw, None)
+            out = self._outs[self._frames % 2]
+            front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
+                      dt_over_tau, p.dark_intensity)
+            signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+        self._frames += 1
         if first:
             self._t_prev = t_us
             for proc in (self._leak, self._hot):
@@ -254,12 +301,28 @@ class SensorModel:
                     proc.start(t_us)
             return _with_kinds(EventBatch.empty())
         t0, self._t_prev = self._t_prev, t_us
-        batch = self._merge(signal, self._noise(raw, t0, t_us))
+        batch = self._merge(signal, self._noise(t0, t_us))
         return self._deliver(batch, t_us)
 
-    def _noise(self, raw: np.ndarray, t0: int, t1: int) -> list[tuple[np.ndarray, ...]]:
+    def _code_tables(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(photoreceptor output, inten01, intensity) per code of a table of log intensities; kept for the last table."""
+        if self._tables[0] is not table:
+            p = self.params
+            inten = np.maximum(np.exp(table) - p.log_eps, 0.0)
+            plog = photoreceptor(table, p.linlog_intensity, p.log_eps)
+            self._tables = (table, plog, (inten + p.dark_intensity) / (1.0 + p.dark_intensity), inten)
+        return self._tables[1], self._tables[2], self._tables[3]
+
+    def _intensity(self, pix: np.ndarray) -> np.ndarray:
+        """The current frame's linear intensity (1 = full scale) at pixels pix."""
+        values, inten = self._inten_now
+        if inten is not None:
+            return inten[values[pix]]
+        return np.maximum(np.exp(values[pix]) - self.params.log_eps, 0.0)
+
+    def _noise(self, t0: int, t1: int) -> list[tuple[np.ndarray, ...]]:
         """Shot, leak and hot-pixel events in (t0, t1] as (pixel, float us, polarity, kind) parts."""
-        p, n = self.params, raw.size
+        p, n = self.params, self.sim.width * self.sim.height
         parts = []
         if p.shot_noise_hz > 0:
             rng, f = self._rng_shot, p.shot_noise_bright_factor
@@ -269,7 +332,7 @@ class SensorModel:
             times = t1 - rng.random(k) * (t1 - t0)  # in (t0, t1]
             pol = rng.random(k) < 0.5
             if f != 1.0:
-                inten = np.maximum(np.exp(raw[pix]) - p.log_eps, 0.0)
+                inten = self._intensity(pix)
                 inten01 = np.minimum((inten + p.dark_intensity) / (1.0 + p.dark_intensity), 1.0)
                 keep = rng.random(k) * top < (f - 1.0) * inten01 + 1.0
                 pix, times, pol = pix[keep], times[keep], pol[keep]
@@ -282,16 +345,29 @@ class SensorModel:
 
     def _merge(self, signal: EventBatch, noise: list[tuple[np.ndarray, ...]]) -> EventBatch:
         """Signal events and noise parts as one batch sorted by (time, pixel), signal first among equals."""
-        w = self.sim.width
-        kinds = [np.zeros(len(signal), np.uint8)] + [np.full(part[0].size, part[3], np.uint8) for part in noise]
-        pix = np.concatenate([signal.y.astype(np.int64) * w + signal.x] + [part[0] for part in noise])
-        t = np.concatenate([signal.t] + [np.rint(part[1]).astype(np.int64) for part in noise])
-        pol = np.concatenate([signal.p] + [part[2].astype(np.uint8) for part in noise])
-        kind = np.concatenate(kinds)
-        if len(t) > len(signal):
-            order = np.lexsort((pix, t))  # stable: signal (first in the arrays) before noise at equal keys
-            pix, t, pol, kind = pix[order], t[order], pol[order], kind[order]
-        return EventBatch((pix % w).astype(np.uint16), (pix // w).astype(np.uint16), t, pol, kind == 0, kind)
+        w, n_pix = self.sim.width, self.sim.width * self.sim.height
+        npix = np.concatenate([part[0] for part in noise]) if noise else np.empty(0, np.int64)
+        if npix.size == 0:
+            return _with_kinds(signal)
+        nt = np.concatenate([np.rint(part[1]).astype(np.int64) for part in noise])
+        npol = np.concatenate([part[2].astype(np.uint8) for part in noise])
+        nkind = np.concatenate([np.full(part[0].size, part[3], np.uint8) for part in noise])
+        # the signal events are in (time, pixel) order already: the few noise events are sorted and inserted
+        nkey = nt * n_pix + npix
+        order = np.argsort(nkey, kind="stable")
+        skey = signal.t * n_pix + (signal.y.astype(np.int64) * w + signal.x)
+        at = np.searchsorted(skey, nkey[order], side="right") + np.arange(order.size)  # after equal signal keys
+        total = len(signal) + order.size
+        is_noise = np.zeros(total, bool)
+        is_noise[at] = True
+        kind = np.zeros(total, np.uint8)
+        kind[at] = nkind[order]
+        t, pol = np.empty(total, np.int64), np.empty(total, np.uint8)
+        x, y = np.empty(total, np.uint16), np.empty(total, np.uint16)
+        t[at], pol[at], x[at], y[at] = nt[order], npol[order], npix[order] % w, npix[order] // w
+        rest = ~is_noise
+        t[rest], pol[rest], x[rest], y[rest] = signal.t, signal.p, signal.x, signal.y
+        return EventBatch(x, y, t, pol, kind == 0, kind)
 
     def _deliver(self, batch: EventBatch, t1: int) -> EventBatch:
         """Latency and readout applied to the interval's events; those at or before t1 (us) handed out, the rest held."""
@@ -303,9 +379,10 @@ class SensorModel:
             batch = EventBatch(batch.x, batch.y, batch.t + np.rint(delay).astype(np.int64), batch.p, batch.signal,
                                batch.noise_kind)
             joined = EventBatch.concatenate([self._held, batch])
-            if p.latency_jitter_us > 0 or len(self._held):
-                order = np.lexsort((joined.y.astype(np.int64) * self.sim.width + joined.x, joined.t))
-                joined = joined.select(order)
+            if p.latency_jitter_us > 0 or len(self._held):  # nearly sorted: the stable sort's runs are long
+                w, n_pix = self.sim.width, self.sim.width * self.sim.height
+                key = joined.t * n_pix + (joined.y.astype(np.int64) * w + joined.x)
+                joined = joined.select(np.argsort(key, kind="stable"))
             cut = int(np.searchsorted(joined.t, t1, side="right"))
             batch, self._held = joined.select(slice(0, cut)), joined.select(slice(cut, None))
         if p.readout_limit_hz > 0:
