@@ -301,8 +301,22 @@ class SensorModel:
                     proc.start(t_us)
             return _with_kinds(EventBatch.empty())
         t0, self._t_prev = self._t_prev, t_us
+        self._check_hot(t0, t_us)
         batch = self._merge(signal, self._noise(t0, t_us))
         return self._deliver(batch, t_us)
+
+    def _check_hot(self, t0: int, t1: int) -> None:
+        """UserError if the hot pixels or the brightest shot noise would draw too many events in (t0, t1] (us)."""
+        from dvsot.events import MAX_NOISE_EVENTS
+
+        p, seconds = self.params, (t1 - t0) * 1e-6
+        n_hot = 0 if self._hot is None else self._hot.pixels.size
+        for field, mean in (("hot_pixel_hz", p.hot_pixel_hz * n_hot * seconds),
+                            ("shot_noise_bright_factor", p.shot_noise_hz * max(1.0, p.shot_noise_bright_factor)
+                             * self.sim.width * self.sim.height * seconds)):
+            if mean > MAX_NOISE_EVENTS:
+                raise UserError(f"{field} {getattr(p, field):g} gives {mean:.3g} noise events between frames "
+                                f"{(t1 - t0) / 1000:g} ms apart, more than the bound of {MAX_NOISE_EVENTS:g}")
 
     def _code_tables(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(photoreceptor output, inten01, intensity) per code of a table of log intensities; kept for the last table."""

@@ -202,6 +202,12 @@ def test_noise_kinds_are_written_and_read_back(tmp_path):
         batch = EventBatch.concatenate(list(ds.chunks()))
     assert batch.noise_kind is not None and np.array_equal(batch.signal, batch.noise_kind == 0)
     assert {NOISE_KINDS.index("shot"), NOISE_KINDS.index("hot")} <= set(np.unique(batch.noise_kind))
+    from dvsot.info import dataset_info
+
+    info = dataset_info(tmp_path / "o.h5")
+    by_kind = info["noise_events_by_kind"]
+    assert sum(by_kind.values()) == info["noise_events"] and by_kind["hot"] == int(np.sum(batch.noise_kind == 3))
+    assert info["sensor_counts"] == {k: summary[k] for k in ("readout_dropped", "held_at_end")}
 
 
 @pytest.mark.parametrize("flags, words", [
