@@ -86,7 +86,7 @@ def sensor_on(params: "EventParams") -> bool:
 def expand_preset(values: dict) -> dict:
     """The preset named in values ('ideal' if none) under the values given: each given field overrides the preset's."""
     name = values.get("preset", "ideal")
-    if name not in PRESETS:
+    if not isinstance(name, str) or name not in PRESETS:
         raise ValueError(f"preset {name!r} is unknown (known: {', '.join(PRESETS)})")
     return {**PRESETS[name], **values}
 
