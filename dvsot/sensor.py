@@ -176,6 +176,17 @@ def readout(t_in, period_us, fifo, state):
     return keep, t_out, dropped
 
 
+@numba.njit(cache=True, nogil=True)
+def due(next_us, t1, scratch):
+    """The number of processes whose next event is at or before t1 (us), their indices in scratch[:n]: one pass."""
+    n = 0
+    for i in range(next_us.shape[0]):
+        if next_us[i] <= t1:
+            scratch[n] = i
+            n += 1
+    return n
+
+
 class Renewal:
     """Per-pixel renewal processes (leak, hot pixels): event times with gamma periods of a given rate and CV."""
 
@@ -195,16 +206,17 @@ class Renewal:
         """Stationary start at t_us: the time to each first event is the residual of a length-biased period."""
         idx = np.arange(self.pixels.size)
         self._next_us = t_us + self._rng.random(idx.size) * self._periods_us(idx, length_biased=True)
+        self._scratch = np.empty(idx.size, np.int64)
 
     def events(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """(pixel, float us time) of the events up to t1, the processes moved past t1."""
         pix, times = [], []
-        due = np.flatnonzero(self._next_us <= t1)
-        while due.size:
-            pix.append(self.pixels[due])
-            times.append(self._next_us[due])
-            self._next_us[due] += self._periods_us(due)
-            due = due[self._next_us[due] <= t1]
+        now = self._scratch[:due(self._next_us, t1, self._scratch)].copy()
+        while now.size:
+            pix.append(self.pixels[now])
+            times.append(self._next_us[now])
+            self._next_us[now] += self._periods_us(now)
+            now = now[self._next_us[now] <= t1]
         if not pix:
             return np.empty(0, np.int64), np.empty(0)
         return np.concatenate(pix).astype(np.int64), np.concatenate(times)
