@@ -86,7 +86,7 @@ class EventParams(BaseModel):
     shot_noise_hz: float = Field(0.0, ge=0, description="shot-noise events per pixel per second (in the dark)")
     leak_hz: float = Field(0.0, ge=0, description="leak (ON) events per pixel per second (the median pixel's)")
     # the sensor model's stages (dvsot.sensor), each off at its default: the ideal model
-    preset: str = Field("ideal", description="sensor model the other fields start from (dvsot.sensor.PRESETS)")
+    preset: str = Field("ideal", description="sensor model the other fields start from (dvsot.presets.PRESETS)")
     linlog_intensity: float = Field(0.0, ge=0, le=1, description="intensity (1 = full scale) below which the "
                                     "photoreceptor is linear; 0 = log everywhere")
     lowpass_order: Literal[0, 1, 2] = Field(0, description="photoreceptor low-pass: 0 off, 1 or 2 stages")
@@ -109,8 +109,8 @@ class EventParams(BaseModel):
     @model_validator(mode="before")
     @classmethod
     def _preset(cls, values):
-        """The named preset's fields under the ones given (dvsot.sensor.expand_preset)."""
-        from dvsot.sensor import expand_preset
+        """The named preset's fields under the ones given (dvsot.presets.expand_preset)."""
+        from dvsot.presets import expand_preset
 
         return expand_preset(values) if isinstance(values, dict) else values
 
@@ -190,9 +190,11 @@ class EventSimulator:
         self._checked_tables: list[np.ndarray] = []
         self._sensor = None  # the stages beyond the ideal pixel (dvsot.sensor), when any is on
         self._in_sensor = False
-        from dvsot.sensor import SensorModel, sensor_on
+        from dvsot.presets import sensor_on
 
         if sensor_on(self.params):
+            from dvsot.sensor import SensorModel
+
             self._sensor = SensorModel(self, seed)
 
     def sensor_counts(self) -> dict | None:

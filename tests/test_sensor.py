@@ -12,7 +12,8 @@ import pytest
 from dvsot.errors import UserError
 from dvsot.event_batch import NOISE_KINDS, EventBatch
 from dvsot.events import EventParams, EventSimulator
-from dvsot.sensor import PRESETS, front_end, readout, sensor_on
+from dvsot.presets import PRESETS, sensor_on
+from dvsot.sensor import front_end, readout
 
 
 def run(params: EventParams, frames, times, width: int, height: int = 1, seed: int = 0, is_log: bool = True):
@@ -242,7 +243,7 @@ def test_scene_files_name_a_preset_and_override_its_fields():
 
 def test_every_sensor_field_has_a_simulate_flag():
     from dvsot.commands.simulate import _STAGE_FLAGS
-    from dvsot.sensor import SENSOR_FIELDS
+    from dvsot.presets import SENSOR_FIELDS
 
     stage_fields = set(EventParams.model_fields) - set(EventParams.model_fields).intersection(
         ["cp", "cn", "sigma_cp", "sigma_cn", "min_threshold", "mismatch", "refractory_us", "log_eps",
