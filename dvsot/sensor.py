@@ -241,6 +241,8 @@ class SensorModel:
         if self._t_prev is not None and t_us <= self._t_prev:
             raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
         first = self._t_prev is None
+        if not first:  # before any state changes: a refused interval leaves the model as it was
+            self._check_hot(self._t_prev, t_us)
         dt_over_tau = 0.0 if first else (t_us - self._t_prev) * 1e-6 * 2 * math.pi * p.lowpass_cutoff_hz
         from dvsot.events import CodedFrame
 
@@ -269,7 +271,6 @@ class SensorModel:
                     proc.start(t_us)
             return _with_kinds(EventBatch.empty())
         t0, self._t_prev = self._t_prev, t_us
-        self._check_hot(t0, t_us)
         batch = self._merge(signal, self._noise(t0, t_us))
         return self._deliver(batch, t_us)
 
