@@ -58,3 +58,14 @@ def test_sweep_tables_arscore_per_tracker_against_the_noise_rate(tmp_path):
         assert len(list(csv.DictReader(f))) == 2
     assert "rct ARscore" in (tmp_path / "out" / "robustness.md").read_text()
     assert (tmp_path / "out" / "robustness.png").stat().st_size > 1000
+
+
+def test_frames_that_do_not_match_the_sequence_are_refused(tmp_path):
+    from benchmarks.robustness import resimulate
+    from dvsot.errors import UserError
+
+    seq, frames = kept_sequence(tmp_path, n=5)
+    (frames / "000004.npy").unlink()
+    with pytest.raises(UserError, match="4 frames .npy., but .* has 5 render samples"):
+        resimulate(seq, frames, tmp_path / "x.h5", {"preset": "davis346"})
+    assert not (tmp_path / "x.h5").exists()
