@@ -90,8 +90,10 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     wall = time.perf_counter() - start
     duration = (int(t_us[-1]) + 1) / 1e6
     n_events = counts.events
-    return {"output": str(path), "frames": source.count, "resolution": f"{source.width}x{source.height}",
-            "duration_s": round(duration, 6), "events": n_events,
-            "event_rate_per_s": round(n_events / duration, 1),
-            "positive_fraction": round(counts.positive / n_events, 4) if n_events else None,
-            "wall_s": round(wall, 3)}
+    summary = {"output": str(path), "frames": source.count, "resolution": f"{source.width}x{source.height}",
+               "duration_s": round(duration, 6), "events": n_events,
+               "event_rate_per_s": round(n_events / duration, 1),
+               "positive_fraction": round(counts.positive / n_events, 4) if n_events else None,
+               "wall_s": round(wall, 3)}
+    sensor = sim.sensor_counts()
+    return summary if sensor is None else {**summary, "preset": params.preset, **sensor}

@@ -7,12 +7,14 @@ import os
 import numpy as np
 
 from dvsot.dataset import Dataset
+from dvsot.event_batch import NOISE_KINDS
 
 
 def dataset_info(path: str | os.PathLike) -> dict:
     """A dict summary of one dataset file (times in seconds, sizes in pixels); every event is read and checked."""
     with Dataset(path) as ds:
         n_pos, n_noise, has_signal = 0, 0, False
+        kinds = None  # events of each noise kind, when the file has /events/noise_kind
         # chunked (files may hold hundreds of millions of events), and every chunk is checked on the way:
         # info is where a damaged file should show up, so it reads all of it
         for batch in ds.chunks():
@@ -20,6 +22,9 @@ def dataset_info(path: str | os.PathLike) -> dict:
             if batch.signal is not None:
                 has_signal = True
                 n_noise += int(np.count_nonzero(~batch.signal))
+            if batch.noise_kind is not None:
+                counts = np.bincount(batch.noise_kind, minlength=len(NOISE_KINDS))
+                kinds = counts if kinds is None else kinds + counts
         n_noise = n_noise if has_signal else None
         seg = ds.segment_boxes()
         have = ~np.isnan(seg).any(axis=1)
@@ -42,7 +47,9 @@ def dataset_info(path: str | os.PathLike) -> dict:
             w, h = seg[have, 2], seg[have, 3]
             out["box_width_px"] = [float(w.min()), float(np.median(w)), float(w.max())]
             out["box_height_px"] = [float(h.min()), float(np.median(h)), float(h.max())]
-        for key in ("simulator", "seed", "generator", "versions"):
+        if kinds is not None:
+            out["noise_events_by_kind"] = {k: int(n) for k, n in zip(NOISE_KINDS[1:], kinds[1:])}
+        for key in ("sensor_counts", "simulator", "seed", "generator", "versions"):
             if key in ds.attrs:
                 out[key] = ds.attrs[key]
     return out

@@ -90,5 +90,8 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
         rows = boxes() if boxes is not None else None
         if rows is not None:
             writer.append_boxes(*rows)
+        sensor = sim.sensor_counts()
+        if sensor is not None:  # what the readout dropped and what was still delayed past the last frame
+            writer.set_attrs(sensor_counts=sensor)
         out = writer.close(int(t_us[-1]) + 1)
     return out, counts

@@ -99,6 +99,10 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             msg = "unknown field"
+        elif loc and loc[0] == "events":  # the simulator's fields: their range and unit
+            from dvsot.events import field_message
+
+            msg = field_message(err)
         if field in (overrides or {}):  # the value came from the command line, not from the file
             raise UserError(f"{source}: field '{field}' = {overrides[field]!r} (an override): {msg}") from None
         line = locate(loc)

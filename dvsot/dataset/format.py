@@ -8,6 +8,8 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /events/t              i8  microseconds since the sequence start
     /events/p              u1  1 = brighter, 0 = darker
     /events/signal         u1  1 = signal, 0 = noise event (present when the generator flags them)
+    /events/noise_kind     u1  0 = signal, 1 = shot noise, 2 = leak, 3 = hot pixel (present when a sensor model
+                               beyond `ideal` made the events: dvsot.event_batch.NOISE_KINDS)
     /events/ms_to_idx      u8  index of the first event with t >= ms * 1000, for ms = 0 .. duration_ms
     /boxes/t               i8  microseconds, one row per rendered sample
     /boxes/xywh            f4  (N, 4) amodal target box (target rendered alone); NaN = absent
@@ -70,14 +72,14 @@ REQUIRED = ("events/x", "events/y", "events/t", "events/p", "events/ms_to_idx",
 # Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).
 LAYOUT: dict[str, tuple[str, int]] = {
     "events/x": ("ui", 1), "events/y": ("ui", 1), "events/t": ("ui", 1), "events/p": ("uib", 1),
-    "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
+    "events/signal": ("uib", 1), "events/noise_kind": ("ui", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
     "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
     "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
     "segments/annotation": ("i", 1),
 }
 MAX_PIXELS = 1 << 16  # x and y are stored as u2
 # Datasets that must have as many rows as the first one of their group.
-SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal"),
+SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal", "events/noise_kind"),
              ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
              ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation"))
 

@@ -16,6 +16,7 @@ from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, S
 from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
                                       columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
+from dvsot.event_batch import NOISE_KINDS
 from dvsot.events import EventBatch
 
 
@@ -66,9 +67,11 @@ class Dataset:
         self.split = str(self.attrs.get("split") or "")
         ev = f["events"]
         self._has_signal = "signal" in ev
+        self._has_kind = "noise_kind" in ev  # files of the ideal sensor model and older ones have none
         # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
         # would decompress a whole 2 MB chunk for every query
-        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
+        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal", "noise_kind")
+                         if name in ev}
         self.num_events = int(ev["t"].shape[0])
         if "num_events" in self.attrs and int_attr(self.attrs, "num_events", 0) != self.num_events:
             raise Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
@@ -99,7 +102,8 @@ class Dataset:
             raise Damaged(problem)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
-                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
+                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1"),
+                        "noise_kind": (len(NOISE_KINDS), f"expected 0..{len(NOISE_KINDS) - 1} ({', '.join(NOISE_KINDS)})")}
         if self.num_events:  # two chunk reads: in a sorted file the ends bound every timestamp
             first = int(self._read("t", 0, 1)[0])
             last = int(self._read("t", self.num_events - 1, self.num_events)[0])
@@ -161,12 +165,15 @@ class Dataset:
         columns = {name: self._read(name, i0, i1) for name in ("x", "y", "t", "p")}
         if self._has_signal:
             columns["signal"] = self._read("signal", i0, i1)
+        if self._has_kind:
+            columns["noise_kind"] = self._read("noise_kind", i0, i1)
         t = columns.pop("t")
         problem = times_problem(t, t0_us, t1_us, i0, source) or columns_problem(columns, self._limits, i0)
         if problem:
             raise self._damaged(problem)
         sig = columns["signal"].astype(bool) if self._has_signal else None
-        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig)
+        kind = columns["noise_kind"].astype(np.uint8) if self._has_kind else None
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig, kind)
 
     def events(self, t0_us: int, t1_us: int) -> EventBatch:
         """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""

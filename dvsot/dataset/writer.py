@@ -17,6 +17,7 @@ from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_at
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
+from dvsot.event_batch import NOISE_KINDS
 from dvsot.events import EventBatch
 from dvsot.h5chunks import encode_chunk
 
@@ -75,6 +76,7 @@ class DatasetWriter:
             self.__exit__(type(exc), exc, None)  # the temp removed; a full disk is one RunError line
             raise
         self._has_signal: bool | None = None
+        self._has_kind: bool | None = None
         self._buffer: list[EventBatch] = []
         self._buffered = 0
         self._count = 0
@@ -126,6 +128,8 @@ class DatasetWriter:
         columns = [("x", batch.x, self.width), ("y", batch.y, self.height), ("p", batch.p, 2)]
         if batch.signal is not None:
             columns.append(("signal", batch.signal, 2))
+        if batch.noise_kind is not None:
+            columns.append(("noise_kind", batch.noise_kind, len(NOISE_KINDS)))
         for name, values, limit in columns:
             v = np.asarray(values)
             if v.max() >= limit or (v.dtype.kind in "if" and v.min() < 0):
@@ -141,6 +145,14 @@ class DatasetWriter:
                                                     **self._filter)
         elif self._has_signal != (batch.signal is not None):
             raise ValueError("either every event batch carries signal flags or none does")
+        if self._has_kind is None:
+            self._has_kind = batch.noise_kind is not None
+            if self._has_kind:
+                self._file["events"].create_dataset("noise_kind", shape=(0,), maxshape=(None,), dtype=np.uint8,
+                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
+                                                    **self._filter)
+        elif self._has_kind != (batch.noise_kind is not None):
+            raise ValueError("either every event batch carries noise kinds or none does")
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
         last_ms = int(t[-1] // 1000)
         if last_ms >= self._next_ms:
@@ -175,6 +187,8 @@ class DatasetWriter:
         if self._has_signal:
             columns["signal"] = joined.signal.view(np.uint8) if joined.signal.dtype == bool else \
                 joined.signal.astype(np.uint8)
+        if self._has_kind:
+            columns["noise_kind"] = joined.noise_kind.astype(np.uint8, copy=False)
         if self._io is None:
             self._io = OrderedWorker(f"write {self.path.name}")
         self._io.submit(self._write_columns, n0, n1, columns)
