@@ -65,10 +65,11 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
 
 
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = "evt3", size_label: str = "size") -> EventFile:
+                    evt_version: str = "evt3", size_label: str = "size", header: bool = False) -> EventFile:
     """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
 
-    size: (width, height) for files that do not say; messages name it as size_label."""
+    size: (width, height) for files that do not say; messages name it as size_label. header: a CSV or TXT
+    file's first line is a header (else only dvsot's own CSV header or TXT size line is one)."""
     p = Path(path)
     kind = event_format(p, "events file")
     from dvsot.validate import file_kind_problem
@@ -79,7 +80,7 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     if kind in ("csv", "txt"):
         from dvsot.textevents import read_text
 
-        t, x, y, pol, skip, file_size = read_text(p, kind)
+        t, x, y, pol, skip, file_size = read_text(p, kind, header)
         size = file_size or size
         if size is None:
             raise UserError(f"{p}: a {kind.upper()} file has no sensor size; give {size_label} WIDTHxHEIGHT")

@@ -163,15 +163,17 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
 def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: str | os.PathLike | None = None,
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
                      size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US, evt_version: str = "evt3",
-                     interpolate: bool = False, labels: Mapping[str, str] | None = None) -> Path:
+                     interpolate: bool = False, labels: Mapping[str, str] | None = None,
+                     header: bool = False) -> Path:
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
 
-    labels: how messages name the settings boxes, box_times and size (a command's flags)."""
+    labels: how messages name the settings boxes, box_times and size (a command's flags); header: the CSV or
+    TXT events file's first line is a header line, not an event."""
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
 
-    ev = read_event_file(events, size, evt_version, label("size", labels))
+    ev = read_event_file(events, size, evt_version, label("size", labels), header)
     if (box_times or absent) and not boxes:
         raise UserError(f"{box_times or absent}: annotation times and absent flags need a box file "
                         f"({label('boxes', labels)})")

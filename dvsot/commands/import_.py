@@ -32,6 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--segment-us", type=int, default=SEGMENT_US,
                    help=f"segment length, microseconds (default {SEGMENT_US})")
     p.add_argument("--evt", choices=["2", "3"], default="3", help="EVT version of a .raw file without one in its header")
+    p.add_argument("--header", action="store_true",
+                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs no flag)")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
@@ -55,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     size = parse_size(args.size, "--size") if args.size else None
     path = import_recording(args.events, args.output, boxes=args.boxes, box_times=args.box_times_us,
                             absent=args.absent, size=size, segment_us=args.segment_us,
-                            evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=_LABELS)
+                            evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=_LABELS,
+                            header=args.header)
     with Dataset(path) as ds:
         scored = int(ds.segment_scored().sum()) if ds.annotated else None
         print(f"{path}: {ds.width}x{ds.height}, {ds.num_events:,} events, {ds.duration_us / 1e6:.3f} s, "

@@ -1,0 +1,56 @@
+"""Inputs that used to pass and then alter data, fail late or allocate without bound: each is refused up front
+with one line naming the file or flag (exit 2) or kept exactly, driven through the command line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dvsot.cli import main
+from dvsot.dataset import Dataset
+
+
+def _import(tmp_path, name: str, text: str, *flags: str) -> tuple[int, str]:
+    """`dvsot import` of a CSV/TXT text on a 32x32 sensor: (exit status, the output's path)."""
+    src = tmp_path / name
+    src.write_text(text)
+    out = tmp_path / (src.stem + ".h5")
+    return main(["import", str(src), "--size", "32x32", "-o", str(out), *flags]), str(out)
+
+
+def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path, capsys):
+    # a first line in another notation is an event, not a header dropped without a word
+    for first in ("1e3,1,2,1", "+1000,1,2,1"):
+        code, out = _import(tmp_path, "a.csv", f"{first}\n2000,3,4,0\n")
+        assert code == 0, capsys.readouterr().err
+        with Dataset(out) as ds:
+            assert ds.num_events == 2 and ds.t_offset_us == 1000
+            assert ds.events(0, ds.duration_us).t.tolist() == [0, 1000]
+    # dvsot's own header needs no flag; another needs --header, and without it the error names line 1
+    assert _import(tmp_path, "own.csv", "t,x,y,p\n1000,1,2,1\n")[0] == 0
+    code, _ = _import(tmp_path, "b.csv", "time,x,y,pol\n1000,1,2,1\n")
+    assert code == 2 and "b.csv:1: field t is 'time'" in capsys.readouterr().err
+    code, out = _import(tmp_path, "b.csv", "time,x,y,pol\n1000,1,2,1\n", "--header")
+    assert code == 0
+    with Dataset(out) as ds:
+        assert ds.num_events == 1
+    # a bad line in the middle is named by its own line number (comments and blank lines counted)
+    code, _ = _import(tmp_path, "c.csv", "# made by hand\n1000,1,2,1\n\nfoo,1,2,1\n")
+    assert code == 2 and "c.csv:4: field t is 'foo'" in capsys.readouterr().err
+    # times are exact or refused: no truncated fraction, no NaN or infinity turned into INT64_MIN
+    for text, line, word in (("1000,1,2,1\n1500.5,1,2,1\n", 2, "whole number of microseconds"),
+                             ("1000,1,2,1\nnan,1,2,1\n", 2, "finite"), ("inf,1,2,1\n", 1, "finite"),
+                             ("1000,1,2,1\n-inf,1,2,1\n", 2, "finite")):
+        code, out = _import(tmp_path, "d.csv", text)
+        err = capsys.readouterr().err
+        assert code == 2 and f"d.csv:{line}: field t is" in err and word in err, err
+        assert len(err.strip().splitlines()) == 1
+    for text, line in (("0.001 1 2 1\n0.0010005 1 2 1\n", 2), ("nan 1 2 1\n", 1)):
+        code, _ = _import(tmp_path, "e.txt", text)
+        err = capsys.readouterr().err
+        assert code == 2 and f"e.txt:{line}: field t is" in err, err
+    code, out = _import(tmp_path, "f.txt", "0.000001 1 2 1\n12.345678 3 4 0\n")
+    assert code == 0
+    with Dataset(out) as ds:
+        assert ds.t_offset_us == 1 and ds.events(0, ds.duration_us).t.tolist() == [0, 12_345_677]
+    assert not (tmp_path / "d.h5").exists() and not (tmp_path / "e.h5").exists()
