@@ -54,3 +54,44 @@ def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path
     with Dataset(out) as ds:
         assert ds.t_offset_us == 1 and ds.events(0, ds.duration_us).t.tolist() == [0, 12_345_677]
     assert not (tmp_path / "d.h5").exists() and not (tmp_path / "e.h5").exists()
+
+
+def _small_file(path, t_offset_us: int = 0, **attrs):
+    """A 32x32 dataset file of 50 ms: 100 events, a box track, the given /t_offset (us) and root attributes."""
+    from dvsot.dataset import DatasetWriter
+    from dvsot.events import EventBatch
+
+    t = np.linspace(0, 49_000, 100).astype(np.int64)
+    with DatasetWriter(path, 32, 32, 10_000, attrs=attrs, t_offset_us=t_offset_us) as w:
+        w.append_events(EventBatch(np.full(100, 3, np.uint16), np.full(100, 4, np.uint16), t, np.ones(100, np.uint8)))
+        w.append_boxes([0, 50_000], [[2, 2, 8, 8], [4, 4, 8, 8]])
+        w.close(50_000)
+    return path
+
+
+def test_a_flipped_bit_in_t_offset_is_refused_and_files_before_its_check_still_load(tmp_path, capsys):
+    import h5py
+
+    from dvsot import validate
+    from dvsot.dataset.format import decode_attr
+
+    path = _small_file(tmp_path / "rec.h5", t_offset_us=1_650_000_000_000_000)
+    with h5py.File(path, "r+") as f:  # one bit: 2**40 us is 12.7 days
+        f["t_offset"][()] = np.int64(1_650_000_000_000_000 ^ (1 << 40))
+    for argv in (["info", str(path)], ["export", str(path), "-o", str(tmp_path / "rec.csv")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "/t_offset" in err and str(path) in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "rec.csv").exists()
+    # the attribute that guards it is itself covered by the digest
+    with h5py.File(path, "r+") as f:
+        f.attrs["t_offset_us"] = np.int64(1_650_000_000_000_000 ^ (1 << 40))
+    assert main(["info", str(path)]) == 2 and validate.DIGEST_ATTR in capsys.readouterr().err
+    # a file written before the attribute (its digest over the others) still loads, offset as stored
+    old = _small_file(tmp_path / "old.h5", t_offset_us=5_000)
+    with h5py.File(old, "r+") as f:
+        del f.attrs["t_offset_us"]
+        f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+    assert main(["info", str(old)]) == 0
+    with Dataset(old) as ds:
+        assert ds.t_offset_us == 5_000

@@ -37,7 +37,9 @@ file and the dataset or attribute. Files written before checksums were added sti
 Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.validate),
 and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
 `attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
-digest (no `attrs_sha256`) load without that check. Whole datasets read into memory are bounded in
+digest (no `attrs_sha256`) load without that check. /t_offset, a scalar HDF5 cannot checksum, is
+repeated as root attribute `t_offset_us`, which the digest covers; the reader compares the two (files
+written before that attribute load without the comparison). Whole datasets read into memory are bounded in
 rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
 """
 

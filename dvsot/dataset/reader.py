@@ -97,6 +97,10 @@ class Dataset:
         problem = validate.digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
+        # /t_offset is a scalar (no chunk, so no Fletcher-32): its copy among the digested attributes guards it
+        if "t_offset_us" in self.attrs and int_attr(self.attrs, "t_offset_us", -(2**63)) != self.t_offset_us:
+            raise Damaged(f"/t_offset is {self.t_offset_us} us, but root attribute 't_offset_us' (covered by "
+                          f"'{validate.DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
                         "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}

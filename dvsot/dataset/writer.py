@@ -290,6 +290,7 @@ class DatasetWriter:
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                         t_offset_us=self.t_offset_us,
                          ground_truth="annotations" if self.annotated else "rendered")
             for key, value in attrs.items():
                 write_attr(f.attrs, key, encode_attr(value))
