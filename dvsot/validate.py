@@ -22,6 +22,7 @@ MAX_BOX_ROWS = 1 << 24  # rendered box samples per file (16.7 million, 512 MB fo
 MAX_SCENE_BYTES = 1 << 20  # a scene file (1 MB; it is stored verbatim in every dataset file)
 MAX_YAML_DEPTH = 64  # nesting of mappings and lists in a YAML text
 MAX_YAML_NODES = 1_000_000  # values in a YAML text once aliases are expanded
+MAX_TEXT_ATTR_BYTES = 4 * MAX_SCENE_BYTES  # one text root attribute of a dataset file (a scene, settings as JSON)
 MAX_PREVIEW_BYTES = 2 << 30  # the RGB frames of one preview GIF/MP4, held in memory until written
 
 DIGEST_ATTR = "attrs_sha256"  # root attribute: SHA-256 of the other root attributes' canonical JSON

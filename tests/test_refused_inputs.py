@@ -95,3 +95,30 @@ def test_a_flipped_bit_in_t_offset_is_refused_and_files_before_its_check_still_l
     assert main(["info", str(old)]) == 0
     with Dataset(old) as ds:
         assert ds.t_offset_us == 5_000
+
+
+def test_a_scene_file_at_the_1_mb_limit_is_stored_and_read_back(tmp_path, capsys):
+    import h5py
+
+    from dvsot import validate
+
+    # a scene file of exactly the bound (comment lines, some of them not ASCII), as generate stores it
+    line = "# padding: ščena ünd ßzene\n"
+    text = "name: big\n" + line * ((validate.MAX_SCENE_BYTES - 100) // len(line.encode()))
+    text += "#" * (validate.MAX_SCENE_BYTES - len(text.encode()) - 1) + "\n"
+    assert len(text.encode()) == validate.MAX_SCENE_BYTES
+    assert validate.yaml_text_problem(text) is None  # a scene file generate accepts
+    path = _small_file(tmp_path / "big.h5", scene_yaml=text, config={"notes": [text[:70_000]]})
+    assert main(["info", str(path)]) == 0
+    with Dataset(path) as ds:
+        assert ds.attrs["scene_yaml"] == text and ds.attrs["config"] == {"notes": [text[:70_000]]}
+    # the long text is under the attribute digest too
+    with h5py.File(path, "r+") as f:
+        (key,) = [k for k in f if k not in ("events", "boxes", "segments", "ms_to_idx", "t_offset")]
+        data = bytearray(f[f"{key}/scene_yaml"][()])
+        data[500_000] ^= 1
+        f[f"{key}/scene_yaml"][()] = bytes(data)
+    capsys.readouterr()
+    assert main(["info", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert validate.DIGEST_ATTR in err and len(err.strip().splitlines()) == 1, err

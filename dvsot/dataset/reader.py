@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 
 from dvsot import validate
-from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
+from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
 from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
                                       columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
@@ -53,7 +53,10 @@ class Dataset:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         check_layout(f)
         self.t_offset_us = check_root_links(f, version)
-        self.attrs: dict[str, Any] = {k: decode_attr(v) for k, v in f.attrs.items()}
+        try:
+            self.attrs: dict[str, Any] = read_attrs(f)
+        except ValueError as exc:
+            raise Damaged(str(exc)) from None
         self.width = int_attr(self.attrs, "width", 1, MAX_PIXELS)
         self.height = int_attr(self.attrs, "height", 1, MAX_PIXELS)
         if self.width * self.height > validate.MAX_SENSOR_PIXELS:

@@ -13,7 +13,7 @@ import numpy as np
 from dvsot import validate
 from dvsot.background import OrderedWorker
 from dvsot.boxes import interpolate_boxes, match_annotations
-from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
+from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, read_attrs, write_attr, write_attrs
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
@@ -292,11 +292,9 @@ class DatasetWriter:
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
                          t_offset_us=self.t_offset_us,
                          ground_truth="annotations" if self.annotated else "rendered")
-            for key, value in attrs.items():
-                write_attr(f.attrs, key, encode_attr(value))
+            write_attrs(f, attrs)
             # over the values as a reader decodes them, so both sides hash the same thing
-            stored = {k: decode_attr(v) for k, v in f.attrs.items()}
-            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
+            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
             f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
             f.close()
             _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)
