@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from dvsot.errors import UserError, exception_line
+from dvsot.validate import sensor_size_problem
 
 # suffix -> format; .raw is EVT 3 unless told otherwise (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
 EVT_VERSIONS = ("evt2", "evt3")
-_MAX_PIXELS = 1 << 16  # dataset files store x and y as u2
 
 
 @dataclass(frozen=True)
@@ -59,9 +59,11 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"{label} {text!r}: expected WIDTHxHEIGHT, e.g. 346x260") from None
-    if not (0 < w <= _MAX_PIXELS and 0 < h <= _MAX_PIXELS):
-        raise UserError(f"{label} {text!r}: width and height must lie in 1..{_MAX_PIXELS}")
+    problem = sensor_size_problem(w, h)
+    if problem:
+        raise UserError(f"{label} {text!r}: {problem}")
     return w, h
+
 
 
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
@@ -110,8 +112,9 @@ def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_ve
 
 def check_events(ev: EventFile) -> None:
     """Raise UserError naming the line or event of the first bad value: order, t < 0, off-sensor pixel, polarity."""
-    if not (0 < ev.width <= _MAX_PIXELS and 0 < ev.height <= _MAX_PIXELS):
-        raise UserError(f"{ev.path}: sensor size {ev.width}x{ev.height}, expected 1..{_MAX_PIXELS} a side")
+    problem = sensor_size_problem(ev.width, ev.height)
+    if problem:
+        raise UserError(f"{ev.path}: sensor size: {problem}")
     if len(ev.t) == 0:
         raise UserError(f"{ev.path}: no events")
     down = np.flatnonzero(ev.t[1:] < ev.t[:-1])

@@ -172,8 +172,13 @@ def read_text(path: str | os.PathLike, kind: str, header: bool = False) -> tuple
     Every line after the header is an event (blank and # lines aside): one that is not fails naming its
     line. Times are exact or refused, never truncated or rounded; `header` skips a CSV's first line.
     """
+    from dvsot.validate import sensor_size_problem
+
     p = Path(path)
     skip, size = _header(p, kind, header)
+    problem = size and sensor_size_problem(*size)
+    if problem:  # before the events are read
+        raise UserError(f"{p}:1: sensor size: {problem}")
     delimiter = "," if kind == "csv" else None
     try:
         rows = np.loadtxt(p, delimiter=delimiter, skiprows=skip, dtype=np.float64, ndmin=2, comments="#")

@@ -23,6 +23,13 @@ MAX_SCENE_BYTES = 1 << 20  # a scene file (1 MB; it is stored verbatim in every 
 MAX_YAML_DEPTH = 64  # nesting of mappings and lists in a YAML text
 MAX_YAML_NODES = 1_000_000  # values in a YAML text once aliases are expanded
 MAX_TEXT_ATTR_BYTES = 4 * MAX_SCENE_BYTES  # one text root attribute of a dataset file (a scene, settings as JSON)
+MAX_SEGMENT_US = MAX_DURATION_US  # a segment is at most a whole file
+MAX_TEXTURE_PIXELS = 8192 * 8192  # an image texture (decoded whole by OpenCV, then by Blender: 1 GB as float RGBA)
+MAX_VARIANTS = 100_000  # scenes drawn from one template in one run (each a task and a manifest record)
+MAX_WORKERS = 256  # processes of one run: --jobs, local:N
+MAX_THREADS = 1024  # torch CPU threads
+MAX_TAIL_STEPS = 1000  # SCTN's empty steps after its 10 ms window: every sample's tensors grow with them
+MAX_LEARNING_RATE = 1.0  # Adam's rate: far above it the weights overflow float32 at the first step
 MAX_PREVIEW_BYTES = 2 << 30  # the RGB frames of one preview GIF/MP4, held in memory until written
 
 DIGEST_ATTR = "attrs_sha256"  # root attribute: SHA-256 of the other root attributes' canonical JSON
@@ -98,6 +105,34 @@ def rows_problem(name: str, rows: int, bound: int, why: str) -> str | None:
     """A message if dataset /name has more than `bound` rows (a bound on what one file can make us read), or None."""
     if rows > bound:
         return f"/{name} has {rows} rows, more than the bound of {bound} ({why})"
+    return None
+
+
+def range_problem(name: str, value: float, low: float, high: float, unit: str = "") -> str | None:
+    """A one-line message if value is not finite or outside [low, high] (high: a bound of this module), or None."""
+    import math
+
+    def num(v: float) -> str:
+        return (f"{v:g}" if isinstance(v, float) else str(v)) + (f" {unit}" if unit else "")
+
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{name} must be a finite number in {num(low)}..{num(high)}, got {value}"
+    if value < low:
+        return f"{name} must be >= {num(low)}, got {num(value)}"
+    if value > high:
+        return f"{name} must be <= {num(high)} (the bound), got {num(value)}"
+    return None
+
+
+def sensor_size_problem(width: int, height: int) -> str | None:
+    """What is wrong with a sensor size (pixels) for a dataset file, or None: each side 1..2**16 (x and y are
+    stored as u2), at most MAX_SENSOR_PIXELS in all."""
+    side = 1 << 16
+    if not (0 < width <= side and 0 < height <= side):
+        return f"width and height must lie in 1..{side}, got {width}x{height}"
+    if width * height > MAX_SENSOR_PIXELS:
+        return (f"{width}x{height} is {width * height} pixels, more than the bound of {MAX_SENSOR_PIXELS} "
+                f"(8192x8192) for a sensor")
     return None
 
 

@@ -56,12 +56,13 @@ def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path
     assert not (tmp_path / "d.h5").exists() and not (tmp_path / "e.h5").exists()
 
 
-def _small_file(path, t_offset_us: int = 0, **attrs):
-    """A 32x32 dataset file of 50 ms: 100 events, a box track, the given /t_offset (us) and root attributes."""
+def _small_file(path, t_offset_us: int = 0, t=None, **attrs):
+    """A 32x32 dataset file of 50 ms: 100 events (at times t, us), a box track, the given /t_offset (us) and root
+    attributes."""
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
 
-    t = np.linspace(0, 49_000, 100).astype(np.int64)
+    t = np.linspace(0, 49_000, 100).astype(np.int64) if t is None else np.asarray(t, np.int64)
     with DatasetWriter(path, 32, 32, 10_000, attrs=attrs, t_offset_us=t_offset_us) as w:
         w.append_events(EventBatch(np.full(100, 3, np.uint16), np.full(100, 4, np.uint16), t, np.ones(100, np.uint8)))
         w.append_boxes([0, 50_000], [[2, 2, 8, 8], [4, 4, 8, 8]])
@@ -122,3 +123,78 @@ def test_a_scene_file_at_the_1_mb_limit_is_stored_and_read_back(tmp_path, capsys
     assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
     assert validate.DIGEST_ATTR in err and len(err.strip().splitlines()) == 1, err
+
+
+def _refused(argv: list[str], capsys, *words: str) -> str:
+    """Run the command: exit 2 and one stderr line holding every word (the bound among them)."""
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2, (argv, err)
+    assert "\n" not in err and "Traceback" not in err and all(w in err for w in words), (argv, err)
+    return err
+
+
+def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys):
+    import struct
+    import zlib
+
+    import h5py
+
+    from dvsot import validate
+    from dvsot.dataset.format import decode_attr
+    from synthetic import MINIMAL_SCENE
+
+    # a small file declaring 33 million events at t = 0 whose chunks were never written (they read as zeros)
+    path = _small_file(tmp_path / "big.h5", t=np.zeros(100))
+    n = 1 << 25
+    with h5py.File(path, "r+") as f:
+        for name in ("x", "y", "t", "p"):
+            f[f"events/{name}"].resize((n,))
+        f["events/ms_to_idx"][1:] = n
+        f.attrs["num_events"] = n
+        f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+    assert path.stat().st_size < 100_000
+    for argv in (["info", str(path)], ["export", str(path), "-o", str(tmp_path / "big.csv")],
+                 ["bench", "--tracker", "kcf", "--data", str(path), "--split", "any", "--out", str(tmp_path / "b")]):
+        _refused(argv, capsys, str(path), "/events/", f"declares {n} rows")
+    assert not (tmp_path / "big.csv").exists() and not (tmp_path / "b").exists()
+
+    template = "blender_scenes/templates/dvsot21_random.yaml"
+    scene = tmp_path / "s.yaml"
+    scene.write_text(MINIMAL_SCENE)
+    csv = tmp_path / "e.csv"
+    csv.write_text("1000,1,2,1\n2000,3,4,0\n")
+    for argv, words in (
+            (["generate", template, "--variants", "3000000", "--dry-run"], ("--variants", str(validate.MAX_VARIANTS))),
+            (["generate", str(scene), "--jobs", "1000000"], ("--jobs", str(validate.MAX_WORKERS))),
+            (["generate", template, "--variants", "2", "--scheduler", "local:100000", "--out-dir", str(tmp_path / "o")],
+             ("local:N", str(validate.MAX_WORKERS))),
+            (["bench", "--tracker", "kcf", "--jobs", "1000000", "--data", str(_small_file(tmp_path / "ok.h5"))],
+             ("--jobs", str(validate.MAX_WORKERS))),
+            (["import", str(csv), "--size", "32x32", "--segment-us", str(10**15), "-o", str(tmp_path / "i.h5")],
+             ("--segment-us", str(validate.MAX_SEGMENT_US))),
+            (["simulate", str(tmp_path / "frames"), "--fps", "1000", "--segment-us", str(10**15),
+              "-o", str(tmp_path / "s.h5")], ("--segment-us", str(validate.MAX_SEGMENT_US))),
+            (["train", "--data", str(tmp_path / "ok.h5"), "--threads", "100000"], ("--threads", str(validate.MAX_THREADS))),
+            (["train", "--data", str(tmp_path / "ok.h5"), "--tail-steps", "1000000000"],
+             ("--tail-steps", str(validate.MAX_TAIL_STEPS))),
+            (["train", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
+            (["import", str(csv), "--size", "65536x65536", "-o", str(tmp_path / "i.h5")],
+             ("--size", str(validate.MAX_SENSOR_PIXELS)))):
+        _refused(argv, capsys, *words)
+    # a TXT header of 65536x65536: refused on its line before its events are read
+    txt = tmp_path / "e.txt"
+    txt.write_text("65536 65536\n0.001 1 2 1\n")
+    _refused(["import", str(txt), "-o", str(tmp_path / "i.h5")], capsys, f"{txt}:1", str(validate.MAX_SENSOR_PIXELS))
+
+    # a 60000x60000 PNG texture (a header and a token of data): refused from its header, before decoding
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    png = tmp_path / "huge.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 60000, 60000, 8, 0, 0, 0, 0))
+                    + chunk(b"IDAT", zlib.compress(b"\0" * 60001)) + chunk(b"IEND", b""))
+    scene.write_text(MINIMAL_SCENE + f"background:\n  material: {{texture: {{type: image, path: {png}}}}}\n")
+    _refused(["generate", str(scene), "-o", str(tmp_path / "t.h5")], capsys, str(png), "60000x60000",
+             str(validate.MAX_TEXTURE_PIXELS))
+    assert not list(tmp_path.glob("*.h5.*")) and not (tmp_path / "i.h5").exists() and not (tmp_path / "t.h5").exists()

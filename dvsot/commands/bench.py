@@ -224,9 +224,11 @@ def plan(args: argparse.Namespace) -> Plan:
     from dvsot.errors import UserError
     from dvsot.names import file_stem
     from dvsot.outputs import output_dir
+    from dvsot.validate import MAX_WORKERS, range_problem
 
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    problem = args.jobs is not None and range_problem("--jobs", args.jobs, 1, MAX_WORKERS)
+    if problem:
+        raise UserError(problem)
     if args.scheduler:
         from dvsot.scale import parse_scheduler
 

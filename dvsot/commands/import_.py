@@ -48,12 +48,13 @@ def run(args: argparse.Namespace) -> int:
     from dvsot.exchange import parse_size
     from dvsot.outputs import output_file
     from dvsot.recordings import import_recording
-    from dvsot.validate import MIN_SEGMENT_US
+    from dvsot.validate import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
+    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
     inputs = [x for x in (args.events, args.boxes, args.box_times_us, args.absent) if x]
     output_file(args.output, "-o", inputs)
-    if args.segment_us < MIN_SEGMENT_US:
-        raise UserError(f"--segment-us {args.segment_us}: expected at least {MIN_SEGMENT_US}")
     size = parse_size(args.size, "--size") if args.size else None
     path = import_recording(args.events, args.output, boxes=args.boxes, box_times=args.box_times_us,
                             absent=args.absent, size=size, segment_us=args.segment_us,

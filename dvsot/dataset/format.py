@@ -40,7 +40,8 @@ and the writer stores a SHA-256 of the root attributes' canonical JSON as root a
 digest (no `attrs_sha256`) load without that check. /t_offset, a scalar HDF5 cannot checksum, is
 repeated as root attribute `t_offset_us`, which the digest covers; the reader compares the two (files
 written before that attribute load without the comparison). Whole datasets read into memory are bounded in
-rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
+rows (dvsot.validate), and every dataset must store all the chunks its shape declares (a chunk never
+written reads as zeros), so a damaged or hostile file cannot make the reader allocate gigabytes.
 
 A text root attribute longer than TEXT_ATTR_BYTES (a scene file of up to 1 MB, stored verbatim) is a
 fixed-length string dataset /attrs/<key> instead, since an HDF5 attribute holds at most 64 kB; the

@@ -13,7 +13,7 @@ import numpy as np
 
 from dvsot import validate
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
-from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
+from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes, check_stored,
                                       columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
 from dvsot.events import EventBatch
@@ -52,6 +52,7 @@ class Dataset:
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         check_layout(f)
+        check_stored(f)
         self.t_offset_us = check_root_links(f, version)
         try:
             self.attrs: dict[str, Any] = read_attrs(f)
