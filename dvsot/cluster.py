@@ -40,6 +40,8 @@ def parse_scheduler(spec: str, label: str = "scheduler") -> tuple[str, int | str
     host, _, port = rest.rpartition(":")
     if scheme not in ("tcp", "tls", "ws", "wss") or not host or not port.isdigit():
         raise UserError(f"{label} must be local:N or tcp://HOST:PORT, got {spec!r}")
+    if not 1 <= int(port) <= 65535:
+        raise UserError(f"{label} {spec!r}: port {int(port)} is not a TCP port (1..65535)")
     return "address", spec
 
 

@@ -38,7 +38,15 @@ _DISK_WORDS = ("No space left on device", "Disk quota exceeded", "Read-only file
 def target(path: str | os.PathLike) -> Path:
     """Where writing `path` lands: the path itself, or the end of its chain of symlinks."""
     p = Path(path)
-    return Path(os.path.realpath(p)) if p.is_symlink() else p
+    if not p.is_symlink():
+        return p
+    try:
+        return Path(os.path.realpath(p, strict=True))
+    except FileNotFoundError:  # a dangling link: writing creates the file it names
+        return Path(os.path.realpath(p))
+    except OSError as exc:  # a loop: it names no file, and writing would replace a link
+        raise UserError(f"{p}: a symbolic link that leads to no file ({exc.strerror or exc}); "
+                        f"remove it or name another output") from None
 
 
 def check_writable(directory: str | os.PathLike, what: str) -> None:

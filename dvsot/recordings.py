@@ -197,6 +197,14 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
                         "box_times": str(box_times) if box_times else None, "absent": str(absent) if absent else None},
              "generator": "dvsot import", "versions": {"dvsot": __version__}}
     t = ev.t - origin
+    # the file covers the last event and the last box: a track's last sample, or the segment end
+    # that may score the last annotation (half a segment after it)
+    end = int(t[-1]) + 1
+    if box_t is not None:
+        end = max(end, int(box_t[-1] - origin) + (0 if interpolate else segment_us // 2))
+    if end < segment_us:
+        raise UserError(f"{events}: the recording spans {end} us, less than one segment of {segment_us} us "
+                        f"({label('segment_us', labels)}): the file would hold no segment to track")
     with DatasetWriter(out, ev.width, ev.height, segment_us, attrs=attrs, t_offset_us=origin,
                        annotated=bool(boxes) and not interpolate) as writer:
         for i in range(0, len(t), _CHUNK):
@@ -205,10 +213,5 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
                                             ev.p[s].astype(np.uint8)))
         if track is not None:
             writer.append_boxes(box_t - origin, track.xywh)
-        # the file covers the last event and the last box: a track's last sample, or the segment end
-        # that may score the last annotation (half a segment after it)
-        end = int(t[-1]) + 1
-        if box_t is not None:
-            end = max(end, int(box_t[-1] - origin) + (0 if interpolate else segment_us // 2))
         writer.close(end)
     return Path(out)

@@ -23,6 +23,8 @@ MAX_SCENE_BYTES = 1 << 20  # a scene file (1 MB; it is stored verbatim in every 
 MAX_YAML_DEPTH = 64  # nesting of mappings and lists in a YAML text
 MAX_YAML_NODES = 1_000_000  # values in a YAML text once aliases are expanded
 MAX_TEXT_ATTR_BYTES = 4 * MAX_SCENE_BYTES  # one text root attribute of a dataset file (a scene, settings as JSON)
+MIN_BOX_SIDE_PX = 0.01  # a box narrower or lower than this is no box (rendered boxes are whole pixels)
+MAX_CONTRAST = 100.0  # event thresholds, log intensity: float32 intensities span less than 180 in log
 MAX_SEGMENT_US = MAX_DURATION_US  # a segment is at most a whole file
 MAX_TEXTURE_PIXELS = 8192 * 8192  # an image texture (decoded whole by OpenCV, then by Blender: 1 GB as float RGBA)
 MAX_VARIANTS = 100_000  # scenes drawn from one template in one run (each a task and a manifest record)
@@ -54,20 +56,20 @@ def file_kind_problem(path: str | os.PathLike) -> str | None:
 def box_problem(xywh: np.ndarray, width: int, height: int, row_name=lambda i: f"row {i}") -> str | None:
     """What is wrong with (N, 4) boxes (xywh pixels) on a width x height sensor, or None.
 
-    A box is four NaNs (no target) or finite with w, h > 0, inside the sensor widened by its own size
-    on every side ([-width, 2 width] x [-height, 2 height]): further out, nothing of it can be seen.
+    A box is four NaNs (no target) or finite with w, h >= MIN_BOX_SIDE_PX, inside the sensor widened by its
+    own size on every side ([-width, 2 width] x [-height, 2 height]): further out, nothing of it can be seen.
     """
     b = np.asarray(xywh, np.float64).reshape(-1, 4)
     absent = np.isnan(b).all(axis=1)
     with np.errstate(invalid="ignore"):
-        bad = ~absent & (~np.isfinite(b).all(axis=1) | (b[:, 2] <= 0) | (b[:, 3] <= 0)
+        bad = ~absent & (~np.isfinite(b).all(axis=1) | (b[:, 2] < MIN_BOX_SIDE_PX) | (b[:, 3] < MIN_BOX_SIDE_PX)
                          | (b[:, 0] < -width) | (b[:, 1] < -height)
                          | (b[:, 0] + b[:, 2] > 2 * width) | (b[:, 1] + b[:, 3] > 2 * height))
     if not bad.any():
         return None
     i = int(np.flatnonzero(bad)[0])
     x, y, w, h = (f"{v:g}" for v in b[i])
-    return (f"{row_name(i)} is x={x} y={y} w={w} h={h}; a box is finite with w, h > 0 and inside "
+    return (f"{row_name(i)} is x={x} y={y} w={w} h={h}; a box is finite with w, h >= {MIN_BOX_SIDE_PX:g} px and inside "
             f"[{-width}, {2 * width}] x [{-height}, {2 * height}] px (the {width}x{height} sensor and its own size "
             f"around it), or four NaNs for no target")
 

@@ -15,7 +15,7 @@ def _import(tmp_path, name: str, text: str, *flags: str) -> tuple[int, str]:
     src = tmp_path / name
     src.write_text(text)
     out = tmp_path / (src.stem + ".h5")
-    return main(["import", str(src), "--size", "32x32", "-o", str(out), *flags]), str(out)
+    return main(["import", str(src), "--size", "32x32", "--segment-us", "1000", "-o", str(out), *flags]), str(out)
 
 
 def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path, capsys):
@@ -27,13 +27,13 @@ def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path
             assert ds.num_events == 2 and ds.t_offset_us == 1000
             assert ds.events(0, ds.duration_us).t.tolist() == [0, 1000]
     # dvsot's own header needs no flag; another needs --header, and without it the error names line 1
-    assert _import(tmp_path, "own.csv", "t,x,y,p\n1000,1,2,1\n")[0] == 0
+    assert _import(tmp_path, "own.csv", "t,x,y,p\n1000,1,2,1\n3000,1,2,1\n")[0] == 0
     code, _ = _import(tmp_path, "b.csv", "time,x,y,pol\n1000,1,2,1\n")
     assert code == 2 and "b.csv:1: field t is 'time'" in capsys.readouterr().err
-    code, out = _import(tmp_path, "b.csv", "time,x,y,pol\n1000,1,2,1\n", "--header")
+    code, out = _import(tmp_path, "b.csv", "time,x,y,pol\n1000,1,2,1\n3000,1,2,1\n", "--header")
     assert code == 0
     with Dataset(out) as ds:
-        assert ds.num_events == 1
+        assert ds.num_events == 2
     # a bad line in the middle is named by its own line number (comments and blank lines counted)
     code, _ = _import(tmp_path, "c.csv", "# made by hand\n1000,1,2,1\n\nfoo,1,2,1\n")
     assert code == 2 and "c.csv:4: field t is 'foo'" in capsys.readouterr().err

@@ -145,6 +145,8 @@ def run(args: argparse.Namespace) -> int:
         paths += found
     from dvsot import validate
 
+    if args.output and args.out_dir:
+        raise UserError("-o names the output file and --out-dir a directory for <name>.h5 files: give one of them")
     for problem in (validate.range_problem("--jobs", args.jobs, 1, validate.MAX_WORKERS),
                     args.variants is not None and validate.range_problem("--variants", args.variants, 1,
                                                                           validate.MAX_VARIANTS)):

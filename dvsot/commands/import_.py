@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
 
-_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "size": "--size"}  # dvsot.recordings' settings as flags
+_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "size": "--size", "segment_us": "--segment-us"}  # dvsot.recordings' settings as flags
 
 
 def run(args: argparse.Namespace) -> int:

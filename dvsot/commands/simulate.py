@@ -80,7 +80,8 @@ def _check_flags(args: argparse.Namespace) -> None:
         raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
 
 
-_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o"}  # how dvsot.framesim's messages name them
+_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o", "segment_us": "--segment-us",
+           "boxes": "--boxes"}  # how dvsot.framesim's messages name them
 
 
 def run(args: argparse.Namespace) -> int:

@@ -90,6 +90,10 @@ class Dataset:
         # recordings: the /boxes row each segment is scored against (-1: none), dvsot.boxes.match_annotations
         self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
         n_boxes = f["boxes/t"].shape[0]
+        box_t = self._load("boxes/t")
+        if n_boxes and not (np.all(box_t[1:] > box_t[:-1]) and 0 <= box_t[0] and box_t[-1] <= self.duration_us):
+            raise Damaged(f"/boxes/t runs from {int(box_t[0])} us to {int(box_t[-1])} us, expected increasing times "
+                          f"within 0..{self.duration_us} us (root attribute 'duration_us')")
         if self._seg_ann is not None and len(self._seg_ann) and not (
                 -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
             raise Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")

@@ -255,6 +255,11 @@ class DatasetWriter:
                 raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
             if self._count and self._last_t >= duration_us:
                 raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
+            if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
+                raise ValueError(f"box times run from {int(box_t[0])} us to {int(box_t[-1])} us, outside the file's "
+                                 f"0..{duration_us} us")
+            if duration_us < self.segment_us:
+                raise ValueError(f"a duration of {duration_us} us holds no segment of {self.segment_us} us")
             duration_ms = -(-duration_us // 1000)
             tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
             ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
