@@ -198,3 +198,59 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
     _refused(["generate", str(scene), "-o", str(tmp_path / "t.h5")], capsys, str(png), "60000x60000",
              str(validate.MAX_TEXTURE_PIXELS))
     assert not list(tmp_path.glob("*.h5.*")) and not (tmp_path / "i.h5").exists() and not (tmp_path / "t.h5").exists()
+
+
+def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
+    import os
+
+    import h5py
+
+    from dvsot import validate
+    from dvsot.dataset.format import decode_attr
+    from synthetic import MINIMAL_SCENE
+
+    def rewrite(path, **datasets) -> None:
+        """Overwrite datasets of a dataset file in place (the digest covers attributes only)."""
+        with h5py.File(path, "r+") as f:
+            for name, values in datasets.items():
+                f[name.replace("__", "/")][...] = values
+            f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+
+    # boxes 1e-30 px wide (bench made an empty table of them at exit 0)
+    thin = _small_file(tmp_path / "thin.h5")
+    with h5py.File(thin, "r") as f:
+        boxes, seg = f["boxes/xywh"][()], f["segments/xywh"][()]
+    boxes[:, 2], seg[:, 2] = 1e-30, 1e-30
+    rewrite(thin, boxes__xywh=boxes, boxes__xywh_visible=boxes, segments__xywh=seg, segments__xywh_visible=seg)
+    _refused(["bench", "--tracker", "kcf", "--data", str(thin), "--split", "any", "--out", str(tmp_path / "b")],
+             capsys, str(thin), "w=1e-30")
+    assert not (tmp_path / "b").exists()
+    # a box sample after the end of the file
+    late = _small_file(tmp_path / "late.h5")
+    rewrite(late, boxes__t=np.array([0, 10_000_000]))
+    _refused(["info", str(late)], capsys, str(late), "/boxes/t", "10000000")
+
+    # a file with no segment is not written: a recording shorter than one segment
+    csv = tmp_path / "e.csv"
+    csv.write_text("1000,1,2,1\n2000,3,4,0\n")
+    _refused(["import", str(csv), "--size", "32x32", "-o", str(tmp_path / "e.h5")], capsys, "--segment-us", "no segment")
+    scene = tmp_path / "s.yaml"
+    scene.write_text(MINIMAL_SCENE)
+    _refused(["generate", str(scene), "--duration", "0.005", "-o", str(tmp_path / "g.h5")], capsys, "duration_s", "0.01")
+    # -o on a symlink loop; -o beside --out-dir
+    loop = tmp_path / "loop.h5"
+    os.symlink(loop.name, loop)
+    _refused(["import", str(csv), "--size", "32x32", "--segment-us", "1000", "-o", str(loop)], capsys, str(loop), "link")
+    assert loop.is_symlink() and os.readlink(loop) == loop.name
+    _refused(["generate", str(scene), "-o", str(tmp_path / "g.h5"), "--out-dir", str(tmp_path / "d")], capsys,
+             "-o", "--out-dir")
+    # a scheduler port beyond 65535 (it used to fail after 20 s of trying to connect)
+    _refused(["generate", "blender_scenes/templates/dvsot21_random.yaml", "--variants", "1", "--scheduler",
+              "tcp://127.0.0.1:99999", "--out-dir", str(tmp_path / "d")], capsys, "99999", "65535")
+    _refused(["bench", "--tracker", "kcf", "--data", str(_small_file(tmp_path / "ok.h5")), "--split", "any",
+              "--scheduler", "tcp://127.0.0.1:99999", "--out", str(tmp_path / "b")], capsys, "99999", "65535")
+    # a contrast threshold that overflows (it printed an overflow note and went on)
+    np.save(tmp_path / "f.npy", np.linspace(0.1, 0.9, 20 * 8 * 8, dtype=np.float32).reshape(20, 8, 8))
+    _refused(["simulate", str(tmp_path / "f.npy"), "--fps", "1000", "--cp", "1e308", "-o", str(tmp_path / "f.h5")],
+             capsys, "--cp", str(validate.MAX_CONTRAST)[:3])
+    assert not any(p.suffix == ".h5" and p.name not in ("thin.h5", "late.h5", "ok.h5", "loop.h5") for p in tmp_path.iterdir())
