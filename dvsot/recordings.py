@@ -81,10 +81,11 @@ def read_box_file(path: str | os.PathLike, width: int, height: int) -> BoxFile:
     rows, lines = _numbers(p, "boxes x,y,w,h or t_s,x,y,w,h", (4, 5))
     t = None
     if rows.shape[1] == 5:
-        if not np.isfinite(rows[:, 0]).all():
-            i = int(np.flatnonzero(~np.isfinite(rows[:, 0]))[0])
-            raise UserError(f"{p}:{lines[i]}: field t_s is {rows[i, 0]}, expected a finite time in seconds")
-        t = np.rint(rows[:, 0] * 1e6).astype(np.int64)
+        from dvsot.textevents import exact_microseconds
+
+        t, bad, why = exact_microseconds(rows[:, 0], "txt")  # seconds, exact to the microsecond or refused
+        if bad is not None:
+            raise UserError(f"{p}:{lines[bad]}: {why.replace('field t ', 'field t_s ', 1)}")
         rows = rows[:, 1:]
     xywh = rows.copy()
     xywh[(xywh == 0).all(axis=1)] = np.nan  # FE108 and VisEvent write 0,0,0,0 for "no target"
@@ -116,7 +117,7 @@ def read_box_times(path: str | os.PathLike, count: int) -> np.ndarray:
     """Annotation times, one integer microsecond per line, strictly increasing, one per box."""
     p = Path(path)
     t, lines = _per_box(p, "annotation times (integer microseconds)", "annotation times", count)
-    bad = np.flatnonzero((t != np.floor(t)) | (np.abs(t) >= 2 ** 62))
+    bad = np.flatnonzero(~(t == np.floor(t)) | ~(np.abs(t) < 2 ** 53))  # NaN too; float64 holds integers to 2**53
     if len(bad):
         raise UserError(f"{p}:{lines[bad[0]]}: {t[bad[0]]:g} is not an integer number of microseconds")
     return t.astype(np.int64)

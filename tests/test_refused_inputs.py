@@ -54,6 +54,11 @@ def test_csv_and_txt_events_are_kept_exactly_or_refused_naming_the_line(tmp_path
     with Dataset(out) as ds:
         assert ds.t_offset_us == 1 and ds.events(0, ds.duration_us).t.tolist() == [0, 12_345_677]
     assert not (tmp_path / "d.h5").exists() and not (tmp_path / "e.h5").exists()
+    # a box track's times too: seconds with at most six decimals, or refused naming the line
+    (tmp_path / "b.boxes.csv").write_text("0.000001,1,1,5,5\n0.0030005,2,2,5,5\n")
+    code, _ = _import(tmp_path, "g.txt", "0.000001 1 2 1\n0.004 3 4 0\n", "--boxes", str(tmp_path / "b.boxes.csv"))
+    err = capsys.readouterr().err
+    assert code == 2 and "b.boxes.csv:2: field t_s is" in err, err
 
 
 def _small_file(path, t_offset_us: int = 0, t=None, **attrs):
