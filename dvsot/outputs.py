@@ -84,6 +84,8 @@ def output_file(path: str | Path, flag: str, inputs: Iterable[str | Path] = ()) 
 def output_dir(path: str | Path, flag: str) -> Path:
     """`path` as a directory a command may write into (made later, when there is output): not a file, writable."""
     p = Path(path)
+    if p.is_symlink() and not p.exists():  # a loop or a dangling link: no directory can be made there
+        raise UserError(f"{p}: {flag} is a symbolic link that leads to no directory; remove it or name another")
     if p.exists() and not p.is_dir():
         raise UserError(f"{p}: {flag} names a file, not a directory")
     for parent in [p, *p.parents]:
