@@ -247,6 +247,7 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     os.symlink(loop.name, loop)
     _refused(["import", str(csv), "--size", "32x32", "--segment-us", "1000", "-o", str(loop)], capsys, str(loop), "link")
     assert loop.is_symlink() and os.readlink(loop) == loop.name
+    _refused(["generate", str(scene), "--out-dir", str(loop)], capsys, str(loop), "link")
     _refused(["generate", str(scene), "-o", str(tmp_path / "g.h5"), "--out-dir", str(tmp_path / "d")], capsys,
              "-o", "--out-dir")
     # a scheduler port beyond 65535 (it used to fail after 20 s of trying to connect)

@@ -134,20 +134,32 @@ TEXT_GROUP = "attrs"  # root attributes whose text is too long for an attribute,
 TEXT_ATTR_BYTES = 16 << 10  # longer text goes to TEXT_GROUP: an HDF5 attribute message holds at most 64 kB
 
 
+def attrs_problem(attrs: dict[str, Any]) -> str | None:
+    """What keeps root attributes from being stored (text over validate.MAX_TEXT_ATTR_BYTES, a long text under a
+    name that cannot be a dataset's), or None."""
+    for key, value in attrs.items():
+        value = encode_attr(value)
+        size = len(value.encode("utf-8")) if isinstance(value, str) else 0
+        if size > validate.MAX_TEXT_ATTR_BYTES:
+            return (f"root attribute {key!r} holds {size} bytes of text, more than the bound of "
+                    f"{validate.MAX_TEXT_ATTR_BYTES} for one attribute")
+        if size > TEXT_ATTR_BYTES and ("/" in key or key in (".", "")):
+            return f"root attribute {key!r}: a long text needs a name without '/'"
+    return None
+
+
 def write_attrs(f: h5py.File, attrs: dict[str, Any]) -> None:
     """Store root attributes (encoded by encode_attr); text over TEXT_ATTR_BYTES as a fixed-length string dataset
     /attrs/<key>, which read_attrs puts back among the others."""
+    problem = attrs_problem(attrs)
+    if problem:
+        raise ValueError(problem)
     for key, value in attrs.items():
         value = encode_attr(value)
         data = value.encode("utf-8") if isinstance(value, str) else None
         if data is None or len(data) <= TEXT_ATTR_BYTES:
             write_attr(f.attrs, key, value)
             continue
-        if len(data) > validate.MAX_TEXT_ATTR_BYTES:
-            raise ValueError(f"root attribute {key!r} holds {len(data)} bytes of text, more than the bound of "
-                             f"{validate.MAX_TEXT_ATTR_BYTES}")
-        if "/" in key or key in (".", ""):
-            raise ValueError(f"root attribute {key!r}: a long text needs a name without '/'")
         f.require_group(TEXT_GROUP).create_dataset(key, data=np.array(data, dtype=h5py.string_dtype("utf-8", len(data))))
 
 

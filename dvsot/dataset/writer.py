@@ -13,7 +13,8 @@ import numpy as np
 from dvsot import validate
 from dvsot.background import OrderedWorker
 from dvsot.boxes import interpolate_boxes, match_annotations
-from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, read_attrs, write_attr, write_attrs
+from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, attrs_problem, read_attrs, write_attr,
+                                  write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
@@ -43,6 +44,9 @@ class DatasetWriter:
         if segment_us < validate.MIN_SEGMENT_US:
             raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
         self.path = Path(path)
+        problem = attrs_problem(attrs or {})
+        if problem:  # before any work: a scene's text is known before its frames are rendered
+            raise UserError(f"{self.path}: {problem}")
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
