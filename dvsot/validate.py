@@ -18,6 +18,7 @@ MAX_DURATION_S = 3600  # one dataset file covers at most an hour: ms_to_idx <= 2
 MAX_DURATION_US = MAX_DURATION_S * 1_000_000
 MIN_SEGMENT_US = 1000  # segments of at least 1 ms: at most 3.6 million per file
 MAX_SENSOR_PIXELS = 8192 * 8192  # width x height of a file, as a scene file's sensor allows
+MAX_WINDOW_EVENTS = 1 << 26  # events one time window (a segment) may load at once: 67 million, 0.9 GB
 MAX_BOX_ROWS = 1 << 24  # rendered box samples per file (16.7 million, 512 MB for both tracks)
 MAX_SCENE_BYTES = 1 << 20  # a scene file (1 MB; it is stored verbatim in every dataset file)
 MAX_YAML_DEPTH = 64  # nesting of mappings and lists in a YAML text

@@ -186,6 +186,9 @@ class Dataset:
         i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
         if i1 <= i0:
             return EventBatch.empty()
+        if i1 - i0 > validate.MAX_WINDOW_EVENTS:  # before the columns are read: a crafted file could hold billions
+            raise UserError(f"{self.path}: {t0_us}..{t1_us} us holds {i1 - i0} events, more than the bound of "
+                            f"{validate.MAX_WINDOW_EVENTS} events read at once")
         return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
 
     def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:
