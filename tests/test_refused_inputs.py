@@ -230,6 +230,12 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     _refused(["bench", "--tracker", "kcf", "--data", str(thin), "--split", "any", "--out", str(tmp_path / "b")],
              capsys, str(thin), "w=1e-30")
     assert not (tmp_path / "b").exists()
+    # boxes of half a pixel are valid, but too small for the protocol to start on: nothing would be scored
+    boxes[:, 2], seg[:, 2] = 0.5, 0.5
+    rewrite(thin, boxes__xywh=boxes, boxes__xywh_visible=boxes, segments__xywh=seg, segments__xywh_visible=seg)
+    _refused(["bench", "--tracker", "kcf", "--data", str(thin), "--split", "any", "--out", str(tmp_path / "b")],
+             capsys, str(thin), "no segment of 5 can be scored")
+    assert not (tmp_path / "b").exists()
     # a box sample after the end of the file
     late = _small_file(tmp_path / "late.h5")
     rewrite(late, boxes__t=np.array([0, 10_000_000]))

@@ -257,6 +257,12 @@ def plan(args: argparse.Namespace) -> Plan:
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     sequences = resolve_data(args.data, args.split)
     files = list(sequences.values())
+    from benchmarks.protocol import nothing_to_score
+
+    for f in files:  # else its row would be empty, at exit 0
+        problem = nothing_to_score(f, args.max_segments, reinitialise=args.protocol == "ar")
+        if problem:
+            raise UserError(problem)
     for seq in args.video:
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
