@@ -158,8 +158,8 @@ def exact_microseconds(t: np.ndarray, kind: str) -> tuple[np.ndarray, int | None
         return us.astype(np.int64), None, ""
     i = int(np.flatnonzero(bad)[0])
     if bad_range[i]:
-        why = (f"expected a finite number of microseconds below 2**53" if csv else
-               f"expected a finite number of seconds below 2**31")
+        why = ("expected a finite number of microseconds below 2**53" if csv else
+               "expected a finite number of seconds below 2**31")
     else:
         why = ("expected a whole number of microseconds" if csv else
                "finer than a microsecond (at most 6 decimals); times are not rounded")
