@@ -202,6 +202,11 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
     scene.write_text(MINIMAL_SCENE + f"background:\n  material: {{texture: {{type: image, path: {png}}}}}\n")
     _refused(["generate", str(scene), "-o", str(tmp_path / "t.h5")], capsys, str(png), "60000x60000",
              str(validate.MAX_TEXTURE_PIXELS))
+    # and as a frame of `dvsot simulate`
+    (tmp_path / "frames").mkdir()
+    png.rename(tmp_path / "frames" / "f0.png")
+    _refused(["simulate", str(tmp_path / "frames"), "--fps", "100", "-o", str(tmp_path / "t.h5")], capsys,
+             "f0.png", "60000x60000", str(validate.MAX_SENSOR_PIXELS))
     assert not list(tmp_path.glob("*.h5.*")) and not (tmp_path / "i.h5").exists() and not (tmp_path / "t.h5").exists()
 
 

@@ -171,31 +171,12 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
         material(o.material, ("objects", i, "material"))
 
 
-def _image_size(path: Path) -> tuple[int, int] | None:
-    """(width, height) in pixels from an image file's header, its pixels not decoded (Pillow; OpenEXR for .exr);
-    None when the header is not one they read (OpenCV's decoder then decides)."""
-    try:
-        if path.suffix.lower() == ".exr":
-            import OpenEXR
-
-            with OpenEXR.File(str(path), header_only=True) as f:
-                return max(p.width() for p in f.parts), max(p.height() for p in f.parts)
-        from PIL import Image
-
-        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # the bound is ours: Pillow's would hide the size
-        try:
-            with Image.open(path) as im:  # reads the header only
-                return im.size
-        finally:
-            Image.MAX_IMAGE_PIXELS = limit
-    except Exception:  # not an image Pillow or OpenEXR knows, or a damaged header
-        return None
-
-
 def _read_image(path: Path) -> None:
     """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels or more than
     validate.MAX_TEXTURE_PIXELS (checked from its header, before decoding)."""
-    size = _image_size(path)
+    from dvsot.frames import image_size
+
+    size = image_size(path)
     if size is not None and size[0] * size[1] > validate.MAX_TEXTURE_PIXELS:
         raise UserError(f"{path}: image of {size[0]}x{size[1]} pixels, more than the bound of "
                         f"{validate.MAX_TEXTURE_PIXELS} (8192x8192) for a texture")
