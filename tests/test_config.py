@@ -27,7 +27,7 @@ def write(tmp_path, text, name="s.yaml"):
 
 @pytest.mark.parametrize("text, words", [
     (GOOD + "  colour: red\n", ":9: field 'target.colour': unknown field"),
-    (GOOD.replace("duration_s: 0.1", "duration_s: -1"), ":2: field 'duration_s': Input should be greater than or equal to 0.01"),
+    (GOOD.replace("duration_s: 0.1", "duration_s: -1"), ":2: field 'duration_s': Input should be greater than or equal to 0.001"),
     (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
     (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
     (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
@@ -46,7 +46,7 @@ def write(tmp_path, text, name="s.yaml"):
     (GOOD + "seed: 1\nseed: 2\n", ":10: field 'seed' is given twice (first on line 9)"),
     (GOOD + "seed: true\n", ":9: field 'seed': Input should be a valid integer"),
     (GOOD + "seed: 99999999999999999999999\n", ":9: field 'seed': Input should be less than or equal to"),
-    (GOOD.replace("duration_s: 0.1", "duration_s: 1.0e-9"), ":2: field 'duration_s': Input should be greater than or equal to 0.01"),
+    (GOOD.replace("duration_s: 0.1", "duration_s: 1.0e-9"), ":2: field 'duration_s': Input should be greater than or equal to 0.001"),
     (GOOD + "sensor: {width: 64.0}\n", "field 'sensor.width': Input should be a valid integer"),
     (GOOD.replace("shape: cube", "shape: cube\n  size_m: '1.6'"), "field 'target.size_m': Input should be a valid number"),
     (GOOD.replace("location: [0, 0, 0]}]\n", "location: [.nan, 0, 0]}]\n"),

@@ -252,7 +252,7 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     _refused(["import", str(csv), "--size", "32x32", "-o", str(tmp_path / "e.h5")], capsys, "--segment-us", "no segment")
     scene = tmp_path / "s.yaml"
     scene.write_text(MINIMAL_SCENE)
-    _refused(["generate", str(scene), "--duration", "0.005", "-o", str(tmp_path / "g.h5")], capsys, "duration_s", "0.01")
+    _refused(["generate", str(scene), "--duration", "0.005", "-o", str(tmp_path / "g.h5")], capsys, "segment_ms", "no segment")
     # -o on a symlink loop; -o beside --out-dir
     loop = tmp_path / "loop.h5"
     os.symlink(loop.name, loop)

@@ -237,7 +237,7 @@ class SceneConfig(Strict):
     description: str = ""
     challenges: list[str] = []
     seed: Int = Field(0, ge=0, le=2**63 - 1, description="master seed: every other seed derives from it")
-    duration_s: Float = Field(ge=SEGMENT_US / 1e6, le=600, description="seconds; at least one segment (10 ms)")
+    duration_s: Float = Field(ge=0.001, le=600, description="seconds; at least 1 ms")
     segment_ms: Float = Field(SEGMENT_US / 1000, ge=1, le=60_000,
                               description="milliseconds, at least 1 (dvsot.validate)")
     sensor: Sensor = Sensor()
