@@ -184,6 +184,7 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
             (["train", "--data", str(tmp_path / "ok.h5"), "--tail-steps", "1000000000"],
              ("--tail-steps", str(validate.MAX_TAIL_STEPS))),
             (["train", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
+            (["train", "--model", "siamfc", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
             (["import", str(csv), "--size", "65536x65536", "-o", str(tmp_path / "i.h5")],
              ("--size", str(validate.MAX_SENSOR_PIXELS)))):
         _refused(argv, capsys, *words)
