@@ -205,7 +205,8 @@ def _loadtxt_problem(path: Path, skip: int, exc: ValueError) -> str:
     text = " ".join(str(exc).split())
     changed = re.search(r"columns changed from \d+ to (\d+) at row (\d+)", text)
     if changed:
-        return f"{line_of_row(path, skip, int(changed.group(2)) - 1)}: {changed.group(1)} fields, expected 4 (t, x, y, p)"
+        line = line_of_row(path, skip, int(changed.group(2)) - 1)
+        return f"{line}: {changed.group(1)} fields, expected 4 (t, x, y, p)"
     bad = re.search(r"could not convert string '([^']*)' to \w+ at row (\d+), column (\d+)", text)
     if bad:
         col = int(bad.group(3))

@@ -3,7 +3,8 @@
 Events: .aedat4, .raw (EVT 3, or EVT 2 with --evt 2, when the header does not say), .dat, .csv
 (t,x,y,p, t in whole microseconds; --size needed) or .txt (t x y p, t in seconds, at most 6 decimals; a
 first line "width height" or --size). Every other line is an event or an error naming it: a header line
-other than dvsot's own "t,x,y,p" needs --header. Timestamps are rebased to the earliest event or annotation, which goes to /t_offset.
+other than dvsot's own "t,x,y,p" needs --header. Timestamps are rebased to the earliest event or
+annotation, which goes to /t_offset.
 Boxes (FE108/VisEvent style): x,y,w,h per annotated frame with --box-times-us (one time per line), or
 t_s,x,y,w,h per line; --absent gives one 0/1 per box (1 = absent). Boxes stay at their annotation times
 and bench scores only the segments matched to one (docs/benchmarks.md); --interpolate treats them as a
@@ -39,7 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
 
-_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "size": "--size", "segment_us": "--segment-us"}  # dvsot.recordings' settings as flags
+# dvsot.recordings' settings as flags
+_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "size": "--size", "segment_us": "--segment-us"}
 
 
 def run(args: argparse.Namespace) -> int:

@@ -160,7 +160,8 @@ def write_attrs(f: h5py.File, attrs: dict[str, Any]) -> None:
         if data is None or len(data) <= TEXT_ATTR_BYTES:
             write_attr(f.attrs, key, value)
             continue
-        f.require_group(TEXT_GROUP).create_dataset(key, data=np.array(data, dtype=h5py.string_dtype("utf-8", len(data))))
+        text = np.array(data, dtype=h5py.string_dtype("utf-8", len(data)))
+        f.require_group(TEXT_GROUP).create_dataset(key, data=text)
 
 
 def read_attrs(f: h5py.File) -> dict[str, Any]:

@@ -13,8 +13,8 @@ import numpy as np
 
 from dvsot import validate
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
-from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes, check_stored,
-                                      columns_problem, int_attr, ms_to_idx_problem, times_problem)
+from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
+                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
 from dvsot.events import EventBatch
 
