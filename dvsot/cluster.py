@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from dvsot.errors import RunError, UserError, exception_line
+from dvsot.validate import MAX_WORKERS
 
 
 @dataclass(frozen=True)
@@ -31,13 +32,16 @@ def parse_scheduler(spec: str, label: str = "scheduler") -> tuple[str, int | str
     label: how the message names the setting (a command passes its flag)."""
     if spec.startswith("local:"):
         n = spec.removeprefix("local:")
-        if not n.isdigit() or not 1 <= int(n) <= 256:
-            raise UserError(f"{label} local:N needs N, a number of worker processes in 1..256, got {spec!r}")
+        if not n.isdigit() or not 1 <= int(n) <= MAX_WORKERS:
+            raise UserError(f"{label} local:N needs N, a number of worker processes in 1..{MAX_WORKERS} (the bound), "
+                            f"got {spec!r}")
         return "local", int(n)
     scheme, _, rest = spec.partition("://")
     host, _, port = rest.rpartition(":")
     if scheme not in ("tcp", "tls", "ws", "wss") or not host or not port.isdigit():
         raise UserError(f"{label} must be local:N or tcp://HOST:PORT, got {spec!r}")
+    if not 1 <= int(port) <= 65535:
+        raise UserError(f"{label} {spec!r}: port {int(port)} is not a TCP port (1..65535)")
     return "address", spec
 
 

@@ -44,6 +44,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dvsot.errors import UserError
+from dvsot.validate import MAX_CONTRAST, MAX_DURATION_US
 from dvsot.event_batch import STRUCTURED_DTYPE, EventBatch  # noqa: F401  (re-exported: dvsot.events.EventBatch)
 
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
@@ -75,13 +76,13 @@ class EventParams(BaseModel):
     # allow_inf_nan=False: an infinite threshold or rate passes gt/ge bounds yet silently means "no events"
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    cp: float = Field(0.2, gt=0, description="ON contrast threshold C+ (log intensity)")
-    cn: float = Field(0.2, gt=0, description="OFF contrast threshold C- (log intensity)")
-    sigma_cp: float = Field(0.0, ge=0, description="per-pixel std of C+ (log intensity)")
-    sigma_cn: float = Field(0.0, ge=0, description="per-pixel std of C- (log intensity)")
-    min_threshold: float = Field(0.01, gt=0, description="lower clamp of drawn thresholds")
+    cp: float = Field(0.2, gt=0, le=MAX_CONTRAST, description="ON contrast threshold C+ (log intensity)")
+    cn: float = Field(0.2, gt=0, le=MAX_CONTRAST, description="OFF contrast threshold C- (log intensity)")
+    sigma_cp: float = Field(0.0, ge=0, le=MAX_CONTRAST, description="per-pixel std of C+ (log intensity)")
+    sigma_cn: float = Field(0.0, ge=0, le=MAX_CONTRAST, description="per-pixel std of C- (log intensity)")
+    min_threshold: float = Field(0.01, gt=0, le=MAX_CONTRAST, description="lower clamp of drawn thresholds")
     mismatch: Literal["fixed", "per_interval"] = "fixed"
-    refractory_us: float = Field(0.0, ge=0, description="refractory period, microseconds")
+    refractory_us: float = Field(0.0, ge=0, le=MAX_DURATION_US, description="refractory period, microseconds")
     log_eps: float = Field(1e-3, gt=0, description="eps in L = log(I + eps)")
     shot_noise_hz: float = Field(0.0, ge=0, description="shot-noise events per pixel per second (in the dark)")
     leak_hz: float = Field(0.0, ge=0, description="leak (ON) events per pixel per second (the median pixel's)")

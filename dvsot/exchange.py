@@ -16,11 +16,11 @@ import numpy as np
 
 from dvsot.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.errors import UserError, exception_line
+from dvsot.validate import sensor_size_problem
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
 EVT_VERSIONS = ("evt2", "evt3")
-_MAX_PIXELS = 1 << 16  # dataset files store x and y as u2
 
 
 @dataclass(frozen=True)
@@ -60,16 +60,19 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"{label} {text!r}: expected WIDTHxHEIGHT, e.g. 346x260") from None
-    if not (0 < w <= _MAX_PIXELS and 0 < h <= _MAX_PIXELS):
-        raise UserError(f"{label} {text!r}: width and height must lie in 1..{_MAX_PIXELS}")
+    problem = sensor_size_problem(w, h)
+    if problem:
+        raise UserError(f"{label} {text!r}: {problem}")
     return w, h
 
 
+
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size") -> EventFile:
+                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size", header: bool = False) -> EventFile:
     """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
 
-    size: (width, height) for files that do not say; messages name it as size_label."""
+    size: (width, height) for files that do not say; messages name it as size_label. header: a CSV or TXT
+    file's first line is a header (else only dvsot's own CSV header or TXT size line is one)."""
     p = Path(path)
     kind = event_format(p, "events file")
     from dvsot.validate import file_kind_problem
@@ -80,7 +83,7 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     if kind in ("csv", "txt"):
         from dvsot.textevents import read_text
 
-        t, x, y, pol, skip, file_size = read_text(p, kind)
+        t, x, y, pol, skip, file_size = read_text(p, kind, header)
         size = file_size or size
         if size is None:
             raise UserError(f"{p}: a {kind.upper()} file has no sensor size; give {size_label} WIDTHxHEIGHT")
@@ -232,8 +235,9 @@ def frame_times(path: str | os.PathLike) -> np.ndarray:
 
 def check_events(ev: EventFile) -> None:
     """Raise UserError naming the line or event of the first bad value: order, t < 0, off-sensor pixel, polarity."""
-    if not (0 < ev.width <= _MAX_PIXELS and 0 < ev.height <= _MAX_PIXELS):
-        raise UserError(f"{ev.path}: sensor size {ev.width}x{ev.height}, expected 1..{_MAX_PIXELS} a side")
+    problem = sensor_size_problem(ev.width, ev.height)
+    if problem:
+        raise UserError(f"{ev.path}: sensor size: {problem}")
     if len(ev.t) == 0:
         raise UserError(f"{ev.path}: no events")
     down = np.flatnonzero(ev.t[1:] < ev.t[:-1])

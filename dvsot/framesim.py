@@ -77,6 +77,13 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     t0 = int(t_us[0])
     t_us = t_us - t0
     box_rows = read_box_csv(boxes, t0, source.width, source.height) if boxes else None
+    if box_rows is not None and not (0 <= box_rows[0][0] and box_rows[0][-1] <= t_us[-1]):
+        raise UserError(f"{boxes} ({label('boxes', labels)}): box times run from {box_rows[0][0] / 1e6:g} s to "
+                        f"{box_rows[0][-1] / 1e6:g} s after the first frame, outside the frames' "
+                        f"0..{t_us[-1] / 1e6:g} s")
+    if int(t_us[-1]) + 1 < segment_us:
+        raise UserError(f"{frames}: the frames span {int(t_us[-1]) + 1} us, less than one segment of {segment_us} us "
+                        f"({label('segment_us', labels)}): the file would hold no segment to track")
 
     sim = EventSimulator(source.width, source.height, params, seed)
     attrs = {"name": Path(output).name.removesuffix(".h5"), "split": "", "source": str(frames),

@@ -14,6 +14,7 @@ import numpy as np
 from dvsot import __version__, interrupts
 from dvsot.boxes import box_from_mask
 from dvsot.config import SceneConfig
+from dvsot.dataset.format import attrs_problem
 from dvsot.errors import UserError
 from dvsot.events import EventSimulator
 from dvsot.lazy import callable_module
@@ -138,6 +139,9 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
              "seed": cfg.seed, "event_seed": cfg.derived_seed("events"), "generator": "dvsot generate",
              "challenges": cfg.challenges,
              "versions": {"dvsot": __version__, "blender": blender_version(), "numpy": np.__version__}}
+    problem = attrs_problem(attrs)
+    if problem:  # before the Blender scene is built
+        raise UserError(f"{out_path}: {problem}")
     render_s = 0.0
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
     # Cycles swallows a KeyboardInterrupt raised inside its callbacks (and renders on), so SIGINT/SIGTERM

@@ -42,7 +42,15 @@ _SHORT_WRITE = re.compile(r"\b\d+ requested and \d+ written\b")
 def target(path: str | os.PathLike) -> Path:
     """Where writing `path` lands: the path itself, or the end of its chain of symlinks."""
     p = Path(path)
-    return Path(os.path.realpath(p)) if p.is_symlink() else p
+    if not p.is_symlink():
+        return p
+    try:
+        return Path(os.path.realpath(p, strict=True))
+    except FileNotFoundError:  # a dangling link: writing creates the file it names
+        return Path(os.path.realpath(p))
+    except OSError as exc:  # a loop: it names no file, and writing would replace a link
+        raise UserError(f"{p}: a symbolic link that leads to no file ({exc.strerror or exc}); "
+                        f"remove it or name another output") from None
 
 
 def check_writable(directory: str | os.PathLike, what: str) -> None:
@@ -80,6 +88,8 @@ def output_file(path: str | Path, flag: str, inputs: Iterable[str | Path] = ()) 
 def output_dir(path: str | Path, flag: str) -> Path:
     """`path` as a directory a command may write into (made later, when there is output): not a file, writable."""
     p = Path(path)
+    if p.is_symlink() and not p.exists():  # a loop or a dangling link: no directory can be made there
+        raise UserError(f"{p}: {flag} is a symbolic link that leads to no directory; remove it or name another")
     if p.exists() and not p.is_dir():
         raise UserError(f"{p}: {flag} names a file, not a directory")
     for parent in [p, *p.parents]:

@@ -224,9 +224,11 @@ def plan(args: argparse.Namespace) -> Plan:
     from dvsot.errors import UserError
     from dvsot.names import file_stem
     from dvsot.outputs import output_dir
+    from dvsot.validate import MAX_WORKERS, range_problem
 
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    problem = args.jobs is not None and range_problem("--jobs", args.jobs, 1, MAX_WORKERS)
+    if problem:
+        raise UserError(problem)
     if args.scheduler:
         from dvsot.scale import parse_scheduler
 
@@ -255,6 +257,12 @@ def plan(args: argparse.Namespace) -> Plan:
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     sequences = resolve_data(args.data, args.split)
     files = list(sequences.values())
+    from benchmarks.protocol import nothing_to_score
+
+    for f in files:  # else its row would be empty, at exit 0
+        problem = nothing_to_score(f, args.max_segments, reinitialise=args.protocol == "ar")
+        if problem:
+            raise UserError(problem)
     for seq in args.video:
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")

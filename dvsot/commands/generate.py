@@ -143,6 +143,15 @@ def run(args: argparse.Namespace) -> int:
         if not found:
             raise UserError(f"{spec}: no scene files match")
         paths += found
+    from dvsot import validate
+
+    if args.output and args.out_dir:
+        raise UserError("-o names the output file and --out-dir a directory for <name>.h5 files: give one of them")
+    for problem in (validate.range_problem("--jobs", args.jobs, 1, validate.MAX_WORKERS),
+                    args.variants is not None and validate.range_problem("--variants", args.variants, 1,
+                                                                          validate.MAX_VARIANTS)):
+        if problem:  # before any scene is read or drawn
+            raise UserError(problem)
     overrides = _overrides(args)
     if args.variants is not None or args.scheduler or args.dry_run or args.resume:
         return _many(args, paths, overrides)
@@ -152,8 +161,6 @@ def run(args: argparse.Namespace) -> int:
     _warn_nonsense(paths, configs)
     if args.output and len(paths) > 1:
         raise UserError("-o names one output file; use --out-dir for several scenes")
-    if args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
     outs = _outputs(args, paths, configs)
     jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, k)
             for p, o, k in zip(paths, outs, _keep_dirs(args.keep_frames, configs))]
@@ -193,8 +200,6 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     if args.variants is not None:
         if len(paths) != 1:
             raise UserError(f"--variants draws from one template file, got {len(paths)}")
-        if args.variants < 1:
-            raise UserError(f"--variants must be >= 1, got {args.variants}")
         # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
         tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview,
                                       warn if args.dry_run else None, _LABELS)

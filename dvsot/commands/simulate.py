@@ -92,17 +92,21 @@ def _check_flags(args: argparse.Namespace) -> None:
 
     from dvsot.errors import UserError
     from dvsot.framesim import MAX_FPS
-    from dvsot.validate import MIN_SEGMENT_US
+    from dvsot.validate import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
     if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
         raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
     if args.segment_us < MIN_SEGMENT_US:
         raise UserError(f"--segment-us must be at least {MIN_SEGMENT_US} (1 ms), got {args.segment_us}")
+    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
     if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
         raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
 
 
-_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o"}  # how dvsot.framesim's messages name them
+_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o", "segment_us": "--segment-us",
+           "boxes": "--boxes"}  # how dvsot.framesim's messages name them
 
 
 def run(args: argparse.Namespace) -> int:

@@ -65,9 +65,12 @@ def _network_config(args: argparse.Namespace):
     from sctn.ann import TwinConfig
     from sctn.network import NetworkConfig
 
+    from dvsot.validate import MAX_TAIL_STEPS, range_problem
+
     tail = args.tail_steps or 0
-    if tail < 0:
-        raise UserError(f"--tail-steps must be >= 0, got {args.tail_steps}")
+    problem = range_problem("--tail-steps", tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
+    if problem:
+        raise UserError(problem)
     net = {"tail_steps": tail, "bias": bool(args.bias)}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
@@ -128,9 +131,12 @@ def run(args: argparse.Namespace) -> int:
     from sctn.checkpoint import check_checkpoint_output, save_checkpoint
     from sctn.train import provenance
 
+    from dvsot.validate import MAX_THREADS, range_problem
+
     cfg = _train_config(args)
-    if args.threads is not None and args.threads < 1:
-        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    problem = args.threads is not None and range_problem("--threads", args.threads, 1, MAX_THREADS)
+    if problem:
+        raise UserError(problem)
     files = find_datasets(args.data, split=None if args.split == "any" else args.split, need_events=True)
     out = check_checkpoint_output(args.output or f"runs/{args.model}.pt", "-o", inputs=files)
     if args.threads:

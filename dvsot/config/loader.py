@@ -176,7 +176,14 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
 
 
 def _read_image(path: Path) -> None:
-    """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels."""
+    """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels or more than
+    validate.MAX_TEXTURE_PIXELS (checked from its header, before decoding)."""
+    from dvsot.frames import image_size
+
+    size = image_size(path)
+    if size is not None and size[0] * size[1] > validate.MAX_TEXTURE_PIXELS:
+        raise UserError(f"{path}: image of {size[0]}x{size[1]} pixels, more than the bound of "
+                        f"{validate.MAX_TEXTURE_PIXELS} (8192x8192) for a texture")
     if path.suffix.lower() == ".exr":
         import OpenEXR
 

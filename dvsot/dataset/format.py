@@ -39,8 +39,15 @@ file and the dataset or attribute. Files written before checksums were added sti
 Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.validate),
 and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
 `attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
-digest (no `attrs_sha256`) load without that check. Whole datasets read into memory are bounded in
-rows (dvsot.validate), so a damaged or hostile file cannot make the reader allocate gigabytes.
+digest (no `attrs_sha256`) load without that check. /t_offset, a scalar HDF5 cannot checksum, is
+repeated as root attribute `t_offset_us`, which the digest covers; the reader compares the two (files
+written before that attribute load without the comparison). Whole datasets read into memory are bounded in
+rows (dvsot.validate), and every dataset must store all the chunks its shape declares (a chunk never
+written reads as zeros), so a damaged or hostile file cannot make the reader allocate gigabytes.
+
+A text root attribute longer than TEXT_ATTR_BYTES (a scene file of up to 1 MB, stored verbatim) is a
+fixed-length string dataset /attrs/<key> instead, since an HDF5 attribute holds at most 64 kB; the
+reader's attributes (and their digest) include it as if it were one.
 """
 
 from __future__ import annotations
@@ -53,6 +60,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from dvsot import validate
 from dvsot.events import EventBatch
 
 FORMAT = "dvsot"
@@ -122,6 +130,64 @@ def write_attr(attrs: h5py.AttributeManager, key: str, value: Any) -> None:
         attrs.create(key, np.array(data, dtype=h5py.string_dtype("utf-8", max(1, len(data)))))
     else:
         attrs[key] = value
+
+
+TEXT_GROUP = "attrs"  # root attributes whose text is too long for an attribute, one scalar dataset each
+TEXT_ATTR_BYTES = 16 << 10  # longer text goes to TEXT_GROUP: an HDF5 attribute message holds at most 64 kB
+
+
+def attrs_problem(attrs: dict[str, Any]) -> str | None:
+    """What keeps root attributes from being stored (text over validate.MAX_TEXT_ATTR_BYTES, a long text under a
+    name that cannot be a dataset's), or None."""
+    for key, value in attrs.items():
+        value = encode_attr(value)
+        size = len(value.encode("utf-8")) if isinstance(value, str) else 0
+        if size > validate.MAX_TEXT_ATTR_BYTES:
+            return (f"root attribute {key!r} holds {size} bytes of text, more than the bound of "
+                    f"{validate.MAX_TEXT_ATTR_BYTES} for one attribute")
+        if size > TEXT_ATTR_BYTES and ("/" in key or key in (".", "")):
+            return f"root attribute {key!r}: a long text needs a name without '/'"
+    return None
+
+
+def write_attrs(f: h5py.File, attrs: dict[str, Any]) -> None:
+    """Store root attributes (encoded by encode_attr); text over TEXT_ATTR_BYTES as a fixed-length string dataset
+    /attrs/<key>, which read_attrs puts back among the others."""
+    problem = attrs_problem(attrs)
+    if problem:
+        raise ValueError(problem)
+    for key, value in attrs.items():
+        value = encode_attr(value)
+        data = value.encode("utf-8") if isinstance(value, str) else None
+        if data is None or len(data) <= TEXT_ATTR_BYTES:
+            write_attr(f.attrs, key, value)
+            continue
+        text = np.array(data, dtype=h5py.string_dtype("utf-8", len(data)))
+        f.require_group(TEXT_GROUP).create_dataset(key, data=text)
+
+
+def read_attrs(f: h5py.File) -> dict[str, Any]:
+    """Every root attribute decoded, those stored as /attrs/<key> datasets (write_attrs) among them.
+
+    Raises ValueError naming the dataset when /attrs holds something write_attrs does not write."""
+    attrs = {k: decode_attr(v) for k, v in f.attrs.items()}
+    if TEXT_GROUP not in f:
+        return attrs
+    group = f[TEXT_GROUP]
+    if not isinstance(group, h5py.Group):
+        raise ValueError(f"/{TEXT_GROUP} is not a group")
+    for key in group:
+        obj = group.get(key)
+        where = f"/{TEXT_GROUP}/{key}"
+        if not isinstance(obj, h5py.Dataset) or obj.shape != () or obj.dtype.kind != "S":
+            raise ValueError(f"{where} is not a fixed-length text scalar")
+        if obj.dtype.itemsize > validate.MAX_TEXT_ATTR_BYTES:  # before reading it
+            raise ValueError(f"{where} holds {obj.dtype.itemsize} bytes, more than the bound of "
+                             f"{validate.MAX_TEXT_ATTR_BYTES} for a text attribute")
+        if key in attrs:
+            raise ValueError(f"{where} repeats root attribute {key!r}")
+        attrs[key] = decode_attr(obj[()])
+    return attrs
 
 
 def decode_attr(value: Any) -> Any:

@@ -12,9 +12,9 @@ import h5py
 import numpy as np
 
 from dvsot import validate
-from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
+from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
 from dvsot.dataset.validation import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      columns_problem, int_attr, ms_to_idx_problem, times_problem)
+                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
 from dvsot.event_batch import NOISE_KINDS
 from dvsot.events import EventBatch
@@ -53,8 +53,12 @@ class Dataset:
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         check_layout(f)
+        check_stored(f)
         self.t_offset_us = check_root_links(f, version)
-        self.attrs: dict[str, Any] = {k: decode_attr(v) for k, v in f.attrs.items()}
+        try:
+            self.attrs: dict[str, Any] = read_attrs(f)
+        except ValueError as exc:
+            raise Damaged(str(exc)) from None
         self.width = int_attr(self.attrs, "width", 1, MAX_PIXELS)
         self.height = int_attr(self.attrs, "height", 1, MAX_PIXELS)
         if self.width * self.height > validate.MAX_SENSOR_PIXELS:
@@ -89,6 +93,10 @@ class Dataset:
         # recordings: the /boxes row each segment is scored against (-1: none), dvsot.boxes.match_annotations
         self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
         n_boxes = f["boxes/t"].shape[0]
+        box_t = self._load("boxes/t")
+        if n_boxes and not (np.all(box_t[1:] > box_t[:-1]) and 0 <= box_t[0] and box_t[-1] <= self.duration_us):
+            raise Damaged(f"/boxes/t runs from {int(box_t[0])} us to {int(box_t[-1])} us, expected increasing times "
+                          f"within 0..{self.duration_us} us (root attribute 'duration_us')")
         if self._seg_ann is not None and len(self._seg_ann) and not (
                 -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
             raise Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")
@@ -100,6 +108,10 @@ class Dataset:
         problem = validate.digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
+        # /t_offset is a scalar (no chunk, so no Fletcher-32): its copy among the digested attributes guards it
+        if "t_offset_us" in self.attrs and int_attr(self.attrs, "t_offset_us", -(2**63)) != self.t_offset_us:
+            raise Damaged(f"/t_offset is {self.t_offset_us} us, but root attribute 't_offset_us' (covered by "
+                          f"'{validate.DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
                         "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1"),
@@ -181,6 +193,9 @@ class Dataset:
         i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
         if i1 <= i0:
             return EventBatch.empty()
+        if i1 - i0 > validate.MAX_WINDOW_EVENTS:  # before the columns are read: a crafted file could hold billions
+            raise UserError(f"{self.path}: {t0_us}..{t1_us} us holds {i1 - i0} events, more than the bound of "
+                            f"{validate.MAX_WINDOW_EVENTS} events read at once")
         return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
 
     def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:

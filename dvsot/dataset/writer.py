@@ -13,7 +13,8 @@ import numpy as np
 from dvsot import validate
 from dvsot.background import OrderedWorker
 from dvsot.boxes import interpolate_boxes, match_annotations
-from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
+from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, attrs_problem, read_attrs, write_attr,
+                                  write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
@@ -44,6 +45,9 @@ class DatasetWriter:
         if segment_us < validate.MIN_SEGMENT_US:
             raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
         self.path = Path(path)
+        problem = attrs_problem(attrs or {})
+        if problem:  # before any work: a scene's text is known before its frames are rendered
+            raise UserError(f"{self.path}: {problem}")
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
@@ -269,6 +273,11 @@ class DatasetWriter:
                 raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
             if self._count and self._last_t >= duration_us:
                 raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
+            if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
+                raise ValueError(f"box times run from {int(box_t[0])} us to {int(box_t[-1])} us, outside the file's "
+                                 f"0..{duration_us} us")
+            if duration_us < self.segment_us:
+                raise ValueError(f"a duration of {duration_us} us holds no segment of {self.segment_us} us")
             duration_ms = -(-duration_us // 1000)
             tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
             ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
@@ -304,12 +313,11 @@ class DatasetWriter:
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                         t_offset_us=self.t_offset_us,
                          ground_truth="annotations" if self.annotated else "rendered")
-            for key, value in attrs.items():
-                write_attr(f.attrs, key, encode_attr(value))
+            write_attrs(f, attrs)
             # over the values as a reader decodes them, so both sides hash the same thing
-            stored = {k: decode_attr(v) for k, v in f.attrs.items()}
-            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
+            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
             f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
             f.close()
             _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)
