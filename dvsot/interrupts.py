@@ -3,7 +3,8 @@
 Blender's Python callbacks swallow exceptions: a KeyboardInterrupt raised inside a Cycles render is
 printed and the render carries on. Inside `deferred()` the handler only records the signal; `check()`
 (called between frames) and the block's end raise it. A worker process also treats the death of its
-parent as an interrupt (`set_parent`).
+parent as an interrupt (`set_parent`), and a task of a run whose parent has stopped it (`guarded`: the run's
+lease, dvsot.staging.RunLease) as one too, so that `check()` and every commit refuse to go on.
 """
 
 from __future__ import annotations
@@ -12,8 +13,9 @@ import os
 import signal
 import sys
 import threading
-from contextlib import contextmanager
-from typing import Iterator
+from contextlib import contextmanager, nullcontext
+from contextvars import ContextVar
+from typing import ContextManager, Iterator, Protocol
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -99,15 +101,52 @@ def parent_gone() -> bool:
     return _state["parent"] is not None and os.getppid() != _state["parent"]
 
 
+def note(signum: int) -> None:
+    """Record a signal for the next `check()` without raising (a handler that must not unwind its own thread)."""
+    _state["raised"] = _state["raised"] or int(signum)
+
+
+class Guard(Protocol):
+    """What a task checks before each step and around each commit: whether its run still wants it."""
+
+    def problem(self) -> str | None: ...
+
+    def committing(self) -> ContextManager[None]: ...
+
+
+_guard: ContextVar[Guard | None] = ContextVar("dvsot_run_guard", default=None)
+
+
+@contextmanager
+def guarded(guard: Guard | None) -> Iterator[None]:
+    """Inside the block (one task), `check()` also raises once `guard` reports a problem (its run was stopped)."""
+    token = _guard.set(guard)
+    try:
+        yield
+    finally:
+        _guard.reset(token)
+
+
+def committing() -> ContextManager[None]:
+    """Around a commit's renames: the guard of this task's run held (its parent cannot stop the run meanwhile)."""
+    guard = _guard.get()
+    return guard.committing() if guard is not None else nullcontext()
+
+
 def check() -> None:
-    """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, or this
-    worker's parent died."""
+    """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, this
+    worker's parent died, or the run of this task was stopped."""
     pending = _state["pending"] or _state["raised"]
     if pending:
         _state["pending"] = _state["raised"] = None
         raise Interrupted(pending)
     if parent_gone():
         raise Interrupted(signal.SIGTERM, "parent process died")
+    guard = _guard.get()
+    if guard is not None:
+        why = guard.problem()
+        if why is not None:
+            raise Interrupted(signal.SIGTERM, why)
 
 
 @contextmanager

@@ -207,7 +207,7 @@ class RunOutputs:
         entries = [{"final": str(f), "staged": str(e["staged"]), "kind": e["kind"],
                     "old": str(e["old"]) if e["old"] else None} for f, e in self._entries.items()]
         if len(entries) == 1 and entries[0]["kind"] == "file" and self.manifest is None:
-            with interrupts.deferred():
+            with interrupts.deferred(), interrupts.committing():  # a task's run, stopped meanwhile, refuses
                 interrupts.check()
                 os.replace(entries[0]["staged"], entries[0]["final"])  # one rename is atomic: no journal needed
                 self._entries.clear()
@@ -226,7 +226,7 @@ class RunOutputs:
                     manifest=str(self.manifest) if self.manifest else None)
         written = []
         try:
-            with interrupts.deferred():
+            with interrupts.deferred(), interrupts.committing():
                 interrupts.check()
                 for p in pointers:  # other directories' temps belong to this commit once the journal exists
                     staging.write_json(p, {"journal": str(journal)}, self.token)
