@@ -220,6 +220,9 @@ class LeaseGuard:
                 return "its run was stopped"
         except OSError:
             return "its run was stopped"
+        m = _NAME.match(self.path.name)
+        if m and m["host"] == _HOST and int(m["pid"]) == os.getpid():
+            return None  # the run's own process (its record locks never conflict with themselves): the file decides
         if fcntl is not None:
             try:
                 _lock(self._fd, fcntl.LOCK_SH | fcntl.LOCK_NB, 0)
