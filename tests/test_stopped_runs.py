@@ -98,3 +98,42 @@ def test_a_revoked_lease_stops_a_task_and_its_commit(tmp_path):
             interrupts.check()
     guard.close()
     assert out.read_text() == "old" and names(tmp_path) == ["x.txt"]
+
+
+def all_children(pid: int) -> list[int]:
+    """Children of every thread of pid (a Dask scheduler's loop thread starts processes too)."""
+    kids = []
+    for f in Path(f"/proc/{pid}/task").glob("*/children"):
+        try:
+            kids += [int(c) for c in f.read_text().split()]
+        except OSError:
+            pass
+    return kids
+
+
+@pytest.mark.parametrize("delay", [0.2, 1.0])
+def test_ctrl_c_on_bench_with_a_scheduler_is_one_line(tmp_path, delay):
+    sys.path.insert(0, str(Path(__file__).parent))
+    from synthetic import moving_square_file
+
+    data = tmp_path / "data"
+    data.mkdir()
+    for k in range(2):
+        moving_square_file(data / f"s{k}.h5", width=64, height=48, size=12, duration_ms=100, split="test", seed=k)
+    out = tmp_path / "b"
+    p = subprocess.Popen(dvsot("bench", "--tracker", "rct", "--tracker", "kcf", "--data", data, "--out", out,
+                               "--scheduler", "local:2", "--quiet"),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        wait_for(lambda: len(all_children(p.pid)) >= 2 or p.poll() is not None, timeout=120)
+        time.sleep(delay)  # the workers start up, or run their first tasks
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+        wait_for(lambda: not group_alive(p.pid), timeout=60, step=0.05)
+    finally:
+        if group_alive(p.pid):
+            os.killpg(p.pid, signal.SIGKILL)
+    if p.returncode == 0:
+        pytest.skip("the run ended before the signal")
+    assert p.returncode == 130 and err.strip().splitlines() == ["dvsot bench: interrupted (SIGINT)"], err
+    assert not out.exists() or not any(out.iterdir())
