@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import os
 import uuid
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -59,6 +60,24 @@ def worker_address() -> str:
         return f"pid {os.getpid()}"
 
 
+_LOCAL: "weakref.WeakSet" = weakref.WeakSet()  # clients of local:N clusters: their workers share this machine
+
+
+def lease_home(client, lease_dir: str | os.PathLike) -> Path:
+    """Where a run's lease goes: this machine's temp directory for local:N (a killed run leaves nothing in the
+    output directory), else `lease_dir`, which every worker sees at the same path."""
+    if client in _LOCAL:
+        import tempfile
+
+        from dvsot.staging import clean_stale
+
+        home = Path(tempfile.gettempdir()) / "dvsot-runs"
+        home.mkdir(mode=0o700, exist_ok=True)
+        clean_stale(home)  # leases of killed runs
+        return home
+    return Path(lease_dir)
+
+
 class Cluster:
     """`with Cluster(spec) as client`: a Client on a new local scheduler with N single-threaded worker processes
     of this process (local:N, all ended at the end) or on a running scheduler (tcp://HOST:PORT)."""
@@ -99,6 +118,7 @@ class Cluster:
         self.cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1", scheduler_port=0,
                                     dashboard_address=None, silence_logs=logging.CRITICAL)
         self.client = Client(self.cluster)
+        _LOCAL.add(self.client)
         self.procs = localworkers.start(self.cluster.scheduler_address, self.arg)
         try:
             self.client.wait_for_workers(self.arg, timeout=self.start_timeout_s)
@@ -179,12 +199,12 @@ def run_tasks(client, fn: Callable, calls: list[tuple], retries: int = 0,
     preferring a worker it has not run on, until it has failed retries + 1 times. stop_on_failure: the first
     failure cancels every other task and is raised as one line (naming `where`, else the scheduler): the task's
     own UserError or RunError, else a RunError.
-    lease_dir: the directory the tasks write into (the same path on every worker): the run's lease goes there,
-    and once this call ends, by an exception (an interrupt included) or not, no task of it commits anything.
+    lease_dir: the directory the tasks write into (the same path on every worker): the run's lease goes there
+    (on local:N, in this machine's temp directory), and once this call ends, by an exception (an interrupt included) or not, no task of it commits anything.
     """
     from dvsot.staging import RunLease
 
-    lease = RunLease(lease_dir) if lease_dir is not None else None
+    lease = RunLease(lease_home(client, lease_dir)) if lease_dir is not None else None
     pending: dict = {}
     try:
         return _run_tasks(client, fn, calls, retries, on_result, on_failure, failure_of, stop_on_failure, name,

@@ -91,6 +91,9 @@ def start(address: str, count: int) -> list[subprocess.Popen]:
     env = dict(os.environ)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])  # this dvsot, also from a tree
+    import dask.config
+
+    env["DASK_INTERNAL_INHERIT_CONFIG"] = dask.config.serialize(dask.config.global_config)  # as a Nanny passes it
     return [subprocess.Popen([sys.executable, "-m", "dvsot.localworkers", address, str(os.getpid()), f"local-{k}"],
                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              env=env)
