@@ -116,7 +116,9 @@ class Cluster:
 
         # the scheduler here, no workers of its own: they are this process's children (dvsot.localworkers)
         self.cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1", scheduler_port=0,
-                                    dashboard_address=None, silence_logs=logging.CRITICAL)
+                                    dashboard_address=None, silence_logs=logging.CRITICAL,
+                                    # its HTTP server (health, metrics) on a free port: 8787 may be another's
+                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         self.client = Client(self.cluster)
         _LOCAL.add(self.client)
         self.procs = localworkers.start(self.cluster.scheduler_address, self.arg)

@@ -33,7 +33,7 @@ except ImportError:  # not POSIX: leases are checked by their file alone
 
 _HOST = re.sub(r"[^A-Za-z0-9.-]", "-", socket.gethostname() or "host")[:64] or "host"
 _NAME = re.compile(r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old|lease)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
-                   r"(?P<suffix>\.[^.~]*)?$")
+                   r"(?P<suffix>(?:\.[^.~/]*)*)$")  # a writer's own temp of a staged file (faery's <name>.write) too
 _LEGACY = re.compile(r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$")  # dvsot's names before 2026-12-02
 
 
@@ -80,10 +80,17 @@ def _dead_local(name: str) -> tuple[str, int, str] | None:
 
 
 def _remove(p: Path) -> None:
+    """Remove a staged file or directory, and the temps a writer made of it (`<name>.<anything>`, as faery's .write)."""
     if p.is_dir() and not p.is_symlink():
         shutil.rmtree(p, ignore_errors=True)
     else:
         p.unlink(missing_ok=True)
+    try:
+        companions = [n for n in os.listdir(p.parent) if n.startswith(p.name + ".")]
+    except OSError:
+        return
+    for n in companions:
+        (p.parent / n).unlink(missing_ok=True)
 
 
 def write_json(path: Path, data: dict, token: str) -> None:
@@ -108,11 +115,36 @@ def replace_dir(staged: Path, final: Path, old: Path) -> None:
     _remove(old)
 
 
+def is_temp(name: str) -> bool:
+    """Whether a file name is one of dvsot's temps (staged files, journals, old directories, leases), any process's."""
+    return bool(_NAME.match(name) or _LEGACY.match(name))
+
+
+def _remove_gone(final: Path, root: Path) -> None:
+    """Remove a previous run's file, then the directories it leaves empty up to (not including) root."""
+    if final.is_dir() and not final.is_symlink():
+        shutil.rmtree(final, ignore_errors=True)
+    else:
+        final.unlink(missing_ok=True)
+    d = final.parent
+    while d != root and root in d.parents:
+        try:
+            os.rmdir(d)
+        except OSError:
+            return
+        d = d.parent
+
+
 def apply_journal(journal: Path) -> None:
-    """Complete the renames a journal names (each one done at most once), then the manifest, then drop the journal."""
+    """Complete the renames a journal names (each one done at most once), the removals of a previous run's files,
+    then the manifest, then drop the journal."""
     data = json.loads(journal.read_text())
     for e in data["entries"]:
-        staged, final = Path(e["staged"]), Path(e["final"])
+        final = Path(e["final"])
+        if e["kind"] == "gone":
+            _remove_gone(final, Path(e["old"]))
+            continue
+        staged = Path(e["staged"])
         if e["kind"] == "dir":
             replace_dir(staged, final, Path(e["old"]))
         elif staged.exists():
