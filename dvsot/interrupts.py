@@ -48,10 +48,15 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
-_state = {"depth": 0, "pending": None, "parent": None, "raised": None}
+_state = {"depth": 0, "pending": None, "parent": None, "raised": None, "seen": None, "last": False,
+          "finished": False, "late": None}
 
 
 def _handler(signum: int, frame) -> None:
+    if _state["finished"]:  # the run's final renames have begun: it completes, and says the signal came late
+        _state["late"] = _state["late"] or signum
+        return
+    _state["seen"] = _state["seen"] or signum
     if _state["depth"]:
         _state["pending"] = _state["pending"] or signum  # the first one wins; raised at check() or the block's end
         return
@@ -65,13 +70,44 @@ def install() -> list:
     """Make SIGINT and SIGTERM raise `Interrupted` (main thread only); the previous handlers, for `restore`."""
     if threading.current_thread() is not threading.main_thread():
         return []
-    _state["raised"] = None  # a new run: an earlier one's interrupt was its own
+    _reset()  # a new run: an earlier one's interrupt was its own
     saved = [(s, signal.getsignal(s)) for s in SIGNALS]
     for s in SIGNALS:
         signal.signal(s, _handler)
     saved.append(("unraisable", sys.unraisablehook))
     sys.unraisablehook = _unraisable
     return saved
+
+
+def _reset() -> None:
+    _state.update(raised=None, seen=None, last=False, finished=False, late=None)
+
+
+def seen() -> int | None:
+    """The first signal this run received and raised (whatever exception it turned into on its way), else None."""
+    return _state["seen"]
+
+
+@contextmanager
+def last_step() -> Iterator[None]:
+    """The block is the command's last step: once its final commit starts renaming (`finish`), the run has completed,
+    and a signal from then on is reported as late (`late()`) instead of interrupting it."""
+    _state["last"] = True
+    try:
+        yield
+    finally:
+        _state["last"] = False
+
+
+def finish() -> None:
+    """Called as a commit starts its renames: inside `last_step()`, the run is complete from here on."""
+    if _state["last"]:
+        _state["finished"] = True
+
+
+def late() -> int | None:
+    """A signal that arrived after the run's final renames had begun (the run completed), else None."""
+    return _state["late"]
 
 
 def _unraisable(info) -> None:
@@ -88,7 +124,7 @@ def restore(saved: list) -> None:
             sys.unraisablehook = h
         else:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
-    _state["raised"] = None
+    _reset()
 
 
 def set_parent(pid: int) -> None:

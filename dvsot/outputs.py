@@ -281,6 +281,7 @@ class RunOutputs:
         if len(entries) == 1 and entries[0]["kind"] == "file" and self.manifest is None:
             with interrupts.deferred(), interrupts.committing():  # a task's run, stopped meanwhile, refuses
                 interrupts.check()
+                interrupts.finish()  # a command's last step is complete from here on
                 os.replace(entries[0]["staged"], entries[0]["final"])  # one rename is atomic: no journal needed
                 self._entries.clear()
             return
@@ -301,6 +302,7 @@ class RunOutputs:
         try:
             with interrupts.deferred(), interrupts.committing():
                 interrupts.check()
+                interrupts.finish()
                 for p in pointers:  # other directories' temps belong to this commit once the journal exists
                     staging.write_json(p, {"journal": str(journal)}, self.token)
                     written.append(p)
