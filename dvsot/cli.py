@@ -82,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dvsot: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
         return 128 + signum
     _one_line_warnings(f"dvsot {args.command}")
+    interrupted = False
     try:
         status = int(args._run(args) or 0)
         if interrupts.late():  # its outputs were all in place before the signal: the run succeeded
@@ -109,9 +110,12 @@ def main(argv: list[str] | None = None) -> int:
         _close_progress_bars()  # else each redraws itself at exit, under the message
         why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
         print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)
+        interrupted = True
         return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
     finally:
         interrupts.restore(saved)
+        if interrupted:
+            interrupts.quiet_exit()
 
 
 if __name__ == "__main__":

@@ -110,6 +110,12 @@ def late() -> int | None:
     return _state["late"]
 
 
+def quiet_exit() -> None:
+    """After a run was reported interrupted: what libraries' clean-up raises as the process ends (a half-written
+    video writer's __del__, an atexit callback) is the interrupt's consequence, not printed."""
+    sys.unraisablehook = lambda info: None
+
+
 def _unraisable(info) -> None:
     """sys.unraisablehook: an Interrupted dropped in a callback is kept for check(), not printed; others as before."""
     if isinstance(info.exc_value, Interrupted):
