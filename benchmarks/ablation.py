@@ -185,7 +185,8 @@ def _run_dask(phases: list[list[tuple]], args: tuple, scheduler: str, retries: i
                     failed.append(runnable[k])
 
             run_tasks(client, run_one, [(row, s, *args) for row, s in runnable], retries,
-                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run")
+                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run",
+                      lease_dir=args[3])  # --out: the checkpoints
     return failed
 
 

@@ -2,7 +2,8 @@
 
 Everything is written as temp files renamed into place together, then the manifest (run.json: the
 run's id and each file's SHA-256, dvsot.outputs), so an interrupted run never leaves a table
-half-written, nor new tables beside old pictures.
+half-written, nor new tables beside old pictures. The directory holds one run's files: the files of the
+previous run there that this one does not write go in the same commit.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ def write_report(out_dir: str | Path, summary, results: list[SequenceResult], *,
     from dvsot.outputs import run_outputs
 
     out = Path(out_dir)
-    with run_outputs(out / MANIFEST) as run:  # all files of the run renamed into place together, or none
+    # all files of the run renamed into place together, or none; the previous run's other files removed with them
+    with run_outputs(out / MANIFEST, whole=True) as run:
         paths = _write_all(out, summary, results, protocol, plots, dict(videos or {}), energy)
     paths["manifest"] = run.manifest
     return paths

@@ -222,8 +222,9 @@ def plan(args: argparse.Namespace) -> Plan:
     from benchmarks.models import energy_ann_models, load_sctn_checkpoint
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
+    from benchmarks.results import per_sequence_files
     from dvsot.names import file_stem
-    from dvsot.outputs import output_dir
+    from dvsot.outputs import output_dir, run_dir
     from dvsot.validate import MAX_WORKERS, range_problem
 
     problem = args.jobs is not None and range_problem("--jobs", args.jobs, 1, MAX_WORKERS)
@@ -263,13 +264,21 @@ def plan(args: argparse.Namespace) -> Plan:
         problem = nothing_to_score(f, args.max_segments, reinitialise=args.protocol == "ar")
         if problem:
             raise UserError(problem)
+    videos: dict[str, str] = {}
     for seq in args.video:
+        from benchmarks.report import video_name
+
+        if videos.get(video_name(seq), seq) != seq:
+            raise UserError(f"--video {seq}: its file name {video_name(seq)} is also --video {videos[video_name(seq)]}'s")
+        videos[video_name(seq)] = seq
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
         check_video(seq, sequences[seq])
     check_outputs(out_dir, _output_names(args, energy), files)
     for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
+    # every path under --out, checked now; --out holds this run's files only (benchmarks.report)
+    run_dir(out_dir, "--out", [*_output_names(args, energy), *per_sequence_files(trackers, sequences, args.protocol)])
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, args.option)
     if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint

@@ -134,8 +134,9 @@ def run(args: argparse.Namespace) -> int:
     import glob
     import json
 
+    from pathlib import Path
+
     from dvsot.errors import UserError
-    from dvsot.workers import WorkerPool
 
     paths: list[str] = []
     for spec in args.scenes:
@@ -166,9 +167,11 @@ def run(args: argparse.Namespace) -> int:
             for p, o, k in zip(paths, outs, _keep_dirs(args.keep_frames, configs))]
     if args.jobs == 1 or len(jobs) == 1:
         summaries = [generate_one(*j) for j in jobs]
-    else:  # workers die with this process and never rename an output into place after it (dvsot.workers)
-        with WorkerPool(min(args.jobs, len(jobs))) as pool:
-            summaries = pool.map(generate_one, *zip(*jobs))
+    else:  # local:N; its workers die with this process and commit nothing once it stops (dvsot.cluster)
+        from dvsot.cluster import map_tasks
+
+        summaries = map_tasks(f"local:{min(args.jobs, len(jobs))}", generate_one, jobs,
+                              lease_dir=Path(outs[0]).resolve().parent)
     for s in summaries:
         if args.quiet:
             print(json.dumps(s))

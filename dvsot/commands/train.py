@@ -152,7 +152,10 @@ def run(args: argparse.Namespace) -> int:
         raise RunError(f"{out}: not written: the trained network is silent (target output {final['vmax_max']:g} "
                        f"at most on the {history['val_segments']} validation segments' samples); train again "
                        f"with another --seed" + (" or --calibrate" if args.model == "sctn" else ""))
-    save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
+    from dvsot import interrupts
+
+    with interrupts.last_step():  # once the checkpoint's renames begin the run has completed: a signal then is late
+        save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
     print(json.dumps({"checkpoint": str(out), "model": args.model, "steps": history["steps"],
                       "minutes": round(history["minutes"], 2), "train_segments": history["train_segments"],
                       "val": final}))
