@@ -14,13 +14,15 @@ STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64)
 
 @dataclass(frozen=True)
 class EventBatch:
-    """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or None)."""
+    """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or None),
+    object (the id of the object that made each event, u1, dvsot.event_labels; None where not labelled)."""
 
     x: np.ndarray
     y: np.ndarray
     t: np.ndarray
     p: np.ndarray
     signal: np.ndarray | None = None
+    object: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -39,8 +41,11 @@ class EventBatch:
         sig = None
         if all(b.signal is not None for b in batches):
             sig = np.concatenate([b.signal for b in batches])
+        obj = None
+        if all(b.object is not None for b in batches):
+            obj = np.concatenate([b.object for b in batches])
         return EventBatch(np.concatenate([b.x for b in batches]), np.concatenate([b.y for b in batches]),
-                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig)
+                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig, obj)
 
     def to_structured(self) -> np.ndarray:
         """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker): STRUCTURED_DTYPE."""
@@ -67,5 +72,6 @@ class EventBatch:
     def select(self, mask_or_index: np.ndarray) -> "EventBatch":
         """The events picked by a boolean mask or an index array."""
         sig = None if self.signal is None else self.signal[mask_or_index]
+        obj = None if self.object is None else self.object[mask_or_index]
         return EventBatch(self.x[mask_or_index], self.y[mask_or_index], self.t[mask_or_index],
-                          self.p[mask_or_index], sig)
+                          self.p[mask_or_index], sig, obj)

@@ -8,6 +8,7 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /events/t              i8  microseconds since the sequence start
     /events/p              u1  1 = brighter, 0 = darker
     /events/signal         u1  1 = signal, 0 = noise event (present when the generator flags them)
+    /events/object         u1  id of the object that made the event (rendered scenes; dvsot.event_labels)
     /events/ms_to_idx      u8  index of the first event with t >= ms * 1000, for ms = 0 .. duration_ms
     /boxes/t               i8  microseconds, one row per rendered sample
     /boxes/xywh            f4  (N, 4) amodal target box (target rendered alone); NaN = absent
@@ -17,6 +18,9 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /segments/xywh_visible f4  (M, 4) visible-part ground truth per segment
     /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
     /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
+    /objects/id            u1  (K,) the ids /events/object uses (present exactly when it is)
+    /objects/name          S   (K,) each object's name (UTF-8)
+    /objects/role          S   (K,) background, target, distractor, occluder or noise
     /t_offset              i8  scalar, microseconds added to /events/t to get the recording's own clock
                                (0 for synthetic data)
 
@@ -73,11 +77,13 @@ LAYOUT: dict[str, tuple[str, int]] = {
     "events/signal": ("uib", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
     "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
     "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
-    "segments/annotation": ("i", 1),
+    "segments/annotation": ("i", 1), "events/object": ("ui", 1), "objects/id": ("ui", 1),
+    "objects/name": ("S", 1), "objects/role": ("S", 1),
 }
 MAX_PIXELS = 1 << 16  # x and y are stored as u2
 # Datasets that must have as many rows as the first one of their group.
-SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal"),
+SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal", "events/object"),
+             ("objects/id", "objects/name", "objects/role"),
              ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
              ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation"))
 

@@ -68,7 +68,7 @@ class Dataset:
         self._has_signal = "signal" in ev
         # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
         # would decompress a whole 2 MB chunk for every query
-        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
+        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal", "object") if name in ev}
         self.num_events = int(ev["t"].shape[0])
         if "num_events" in self.attrs and int_attr(self.attrs, "num_events", 0) != self.num_events:
             raise Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
@@ -97,6 +97,7 @@ class Dataset:
         problem = validate.digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
+        self._object_table(f)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
                         "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
@@ -106,6 +107,43 @@ class Dataset:
             if not 0 <= first <= last < self.duration_us:
                 raise Damaged(f"/events/t runs from {first} us to {last} us, expected "
                                f"0 <= first <= last < root attribute 'duration_us' ({self.duration_us})")
+
+    def _object_table(self, f: h5py.File) -> None:
+        """The object table and per-id event counts, the label column read through once: ids outside the table refused."""
+        self._has_object = "object" in self._columns
+        if self._has_object != ("objects" in f):
+            raise Damaged("/events/object without /objects" if self._has_object else "/objects without /events/object")
+        self.objects: list[dict] | None = None
+        self._object_counts: np.ndarray | None = None
+        if not self._has_object:
+            return
+        from dvsot.event_labels import table_problem
+
+        if f["events/object"].dtype != np.uint8:
+            raise Damaged(f"/events/object has dtype {f['events/object'].dtype}, expected uint8")
+        ids = self._load("objects/id").astype(np.int64)
+        names, roles = ([v.decode("utf-8", "replace") for v in self._load(f"objects/{k}")] for k in ("name", "role"))
+        problem = table_problem(ids, names, roles)
+        if problem:
+            raise Damaged(problem)
+        self.objects = [{"id": int(i), "name": n, "role": r} for i, n, r in zip(ids, names, roles)]
+        self._known_ids = np.zeros(256, bool)
+        self._known_ids[ids] = True
+        counts = np.zeros(256, np.int64)
+        step = 1 << 22
+        for i0 in range(0, self.num_events, step):
+            counts += np.bincount(self._read("object", i0, min(i0 + step, self.num_events)), minlength=256)[:256]
+        stray = np.flatnonzero((counts > 0) & ~self._known_ids)
+        if len(stray):
+            raise Damaged(f"/events/object holds id {int(stray[0])} ({int(counts[stray[0]])} events), "
+                          f"which /objects/id does not list")
+        self._object_counts = counts
+
+    def object_counts(self) -> dict[int, int] | None:
+        """Events per object id of the table (every id listed, zeros kept), or None for a file without labels."""
+        if self.objects is None:
+            return None
+        return {row["id"]: int(self._object_counts[row["id"]]) for row in self.objects}
 
     def __enter__(self) -> "Dataset":
         return self
@@ -161,12 +199,16 @@ class Dataset:
         columns = {name: self._read(name, i0, i1) for name in ("x", "y", "t", "p")}
         if self._has_signal:
             columns["signal"] = self._read("signal", i0, i1)
+        obj = self._read("object", i0, i1) if self._has_object else None
         t = columns.pop("t")
         problem = times_problem(t, t0_us, t1_us, i0, source) or columns_problem(columns, self._limits, i0)
+        if not problem and obj is not None and len(obj) and not self._known_ids[obj].all():
+            i = int(np.flatnonzero(~self._known_ids[obj])[0])
+            problem = f"/events/object holds id {int(obj[i])} at event {i0 + i}, which /objects/id does not list"
         if problem:
             raise self._damaged(problem)
         sig = columns["signal"].astype(bool) if self._has_signal else None
-        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig)
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig, obj)
 
     def events(self, t0_us: int, t1_us: int) -> EventBatch:
         """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""

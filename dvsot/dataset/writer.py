@@ -36,7 +36,8 @@ class DatasetWriter:
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = SEGMENT_US,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
-                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
+                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False,
+                 objects: list[dict] | None = None) -> None:
         if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
             raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
                              f"all, got {width}x{height}")
@@ -63,11 +64,25 @@ class DatasetWriter:
         self.annotated = bool(annotated)
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
+        # objects: the table of object ids (dvsot.event_labels.object_table); then every event carries its id
+        self._objects = None if objects is None else [dict(row) for row in objects]
+        if self._objects is not None:
+            from dvsot.event_labels import table_problem
+
+            problem = table_problem(np.array([r["id"] for r in self._objects]), [r["name"] for r in self._objects],
+                                    [r["role"] for r in self._objects])
+            if problem:
+                raise ValueError(f"object table: {problem}")
+            self._known_ids = np.zeros(256, bool)
+            self._known_ids[[r["id"] for r in self._objects]] = True
         self._file = None
         try:
             self._file = h5py.File(self.tmp_path, "w")
             ev = self._file.create_group("events")
-            for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
+            columns = [("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)]
+            if self._objects is not None:
+                columns.append(("object", np.uint8))
+            for name, dtype in columns:
                 ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
                                   fletcher32=self._checksum, **self._filter)
         except BaseException as exc:
@@ -126,6 +141,15 @@ class DatasetWriter:
         columns = [("x", batch.x, self.width), ("y", batch.y, self.height), ("p", batch.p, 2)]
         if batch.signal is not None:
             columns.append(("signal", batch.signal, 2))
+        if (batch.object is not None) != (self._objects is not None):
+            raise ValueError("events carry object ids exactly when the writer has an object table")
+        if batch.object is not None:
+            ids = np.asarray(batch.object)
+            if ids.shape != t.shape:
+                raise ValueError(f"event object ids: {ids.shape[0]} for {n} events")
+            known = (ids >= 0) & (ids <= 255) & self._known_ids[np.clip(ids, 0, 255).astype(np.intp)]
+            if not known.all():
+                raise ValueError(f"event object id {int(ids[~known][0])} is not in the object table")
         for name, values, limit in columns:
             v = np.asarray(values)
             if v.max() >= limit or (v.dtype.kind in "if" and v.min() < 0):
@@ -175,6 +199,8 @@ class DatasetWriter:
         if self._has_signal:
             columns["signal"] = joined.signal.view(np.uint8) if joined.signal.dtype == bool else \
                 joined.signal.astype(np.uint8)
+        if self._objects is not None:
+            columns["object"] = joined.object.astype(np.uint8, copy=False)
         if self._io is None:
             self._io = OrderedWorker(f"write {self.path.name}")
         self._io.submit(self._write_columns, n0, n1, columns)
@@ -286,6 +312,12 @@ class DatasetWriter:
             s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
             if self.annotated:
                 s.create_dataset("annotation", data=match, **ck)
+            if self._objects is not None:
+                o = f.create_group("objects")
+                o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
+                for key in ("name", "role"):  # fixed-length UTF-8: no heap a damaged file could point into
+                    text = [str(r[key]).encode("utf-8") for r in self._objects]
+                    o.create_dataset(key, data=np.array(text, dtype=f"S{max([1, *map(len, text)])}"), **ck)
             attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
