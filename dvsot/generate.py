@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from dvsot import __version__, interrupts
-from dvsot.boxes import box_from_mask
+from dvsot.boxes import box_from_mask, mask_visibility
 from dvsot.config import SceneConfig
 from dvsot.errors import UserError
 from dvsot.event_labels import LabelledFrame, object_table
@@ -159,7 +159,7 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
             keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
         with BlenderScene(cfg) as scene:
             interrupts.check()
-            amodal, visible = [], []
+            amodal, visible, visibility = [], [], []
 
             def renders():
                 """Luma of each sample in turn; its boxes are kept for the file."""
@@ -175,10 +175,11 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                         np.save(keep / f"{i:06d}.npy", luma)
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
+                    visibility.append(mask_visibility(full, seen))
                     yield LabelledFrame(luma, objects) if labels else luma
 
             _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
-                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible), progress=progress,
+                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible, visibility), progress=progress,
                                        bar_after_error=False,  # the error line alone, no bar redrawn under it
                                        objects=scene_object_table(cfg) if labels else None)
             n_events, n_pos = counts.events, counts.positive

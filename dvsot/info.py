@@ -42,6 +42,11 @@ def dataset_info(path: str | os.PathLike) -> dict:
             out["objects"] = [dict(row, events=counts[row["id"]],
                                    share=counts[row["id"]] / ds.num_events if ds.num_events else 0.0)
                               for row in ds.objects]
+        absent = ds.segment_absent()
+        if absent is not None:  # rendered: how much of the target is seen (docs/dataset-files.md)
+            vis = ds.segment_visibility()
+            out["segments_absent"] = int(absent.sum())
+            out["visibility_median"] = float(np.nanmedian(vis)) if np.isfinite(vis).any() else None
         if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
             out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
         if have.any():

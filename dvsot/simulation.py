@@ -65,7 +65,7 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
     return SimulationCounts(n, writer.num_events, n_pos)
 
 
-BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)]): box samples for DatasetWriter.append_boxes
+BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)[, visibility (N,)]]): DatasetWriter.append_boxes
 
 
 def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,

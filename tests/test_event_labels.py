@@ -198,3 +198,16 @@ def test_background_pixel_beside_a_moving_edge_takes_the_moved_object():
     y = np.array([1, 0, 1, 2])
     ids = event_objects(x, y, np.array([100, 900, 500, 500]), None, 0, 1000, before, after)
     assert ids.tolist() == [TARGET_ID, TARGET_ID, BACKGROUND_ID, TARGET_ID]
+
+
+def test_info_gives_each_objects_share(tmp_path, capsys):
+    from dvsot.cli import main
+    from dvsot.info import dataset_info
+
+    path = _labelled_file(tmp_path)
+    info = dataset_info(path)
+    shares = {row["name"]: row["share"] for row in info["objects"]}
+    assert sum(shares.values()) == pytest.approx(1.0)
+    assert shares["target"] > 0 and shares["box"] > 0 and shares["noise"] == 0
+    assert main(["info", str(path)]) == 0
+    assert "1 target (target)" in capsys.readouterr().out

@@ -50,6 +50,9 @@ def test_target_events_carry_the_target_id(tmp_path, capsys):
             (NOISE_ID, "noise", "noise")]
         ev = ds.events(0, ds.duration_us)
         track = ds.boxes()
+        # nothing passes in front of the target: all of it visible, never absent
+        assert np.all(track.visibility > 0.95) and not ds.segment_absent().any()
+        assert np.all(ds.segment_visibility() > 0.95)
     # inside the target's box at either sample around an event, every event is the target's, and no target
     # event lies outside (the background's own events, from the light the moving objects block, keep id 0)
     k = np.searchsorted(track.t, ev.t)

@@ -89,6 +89,21 @@ class Dataset:
         if self._seg_ann is not None and len(self._seg_ann) and not (
                 -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
             raise Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")
+        self._seg_visibility = self._seg_absent = None
+        if "segments/visibility" in f or "segments/absent" in f or "boxes/visibility" in f:
+            for name in ("boxes/visibility", "segments/visibility", "segments/absent"):
+                if name not in f:
+                    raise Damaged(f"missing /{name} (a file with visibility has all of /boxes/visibility, "
+                                  "/segments/visibility and /segments/absent)")
+            for name in ("boxes/visibility", "segments/visibility"):
+                v = self._load(name)
+                if np.any(v < 0) or np.any(v > 1) or (name == "boxes/visibility" and np.isnan(v).any()):
+                    raise Damaged(f"/{name} holds values outside 0..1")
+            self._seg_visibility = self._load("segments/visibility").astype(np.float32)
+            self._seg_absent = self._load("segments/absent")
+            if np.any(self._seg_absent > 1):
+                raise Damaged("/segments/absent holds values other than 0 and 1")
+            self._seg_absent = self._seg_absent.astype(bool)
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
             problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
@@ -269,7 +284,9 @@ class Dataset:
             raise IndexError(f"segment {i} out of range 0..{self.num_segments - 1}")
         t0, t1 = i * self.segment_us, (i + 1) * self.segment_us
         vis = None if self._seg_vis is None else self._seg_vis[i].copy()
-        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis)
+        visibility = None if self._seg_visibility is None else float(self._seg_visibility[i])
+        absent = None if self._seg_absent is None else bool(self._seg_absent[i])
+        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis, visibility, absent)
 
     def segments(self, start: int = 0, stop: int | None = None) -> Iterator[Segment]:
         """Segments start..stop-1 in order."""
@@ -296,9 +313,19 @@ class Dataset:
         """Per segment, the /boxes row of its annotation (-1: none), or None for a rendered file."""
         return None if self._seg_ann is None else self._seg_ann.copy()
 
+    def segment_visibility(self) -> np.ndarray | None:
+        """Per segment, visible / amodal target pixels at its end (0..1, NaN outside the track), or None (not in the file)."""
+        return None if self._seg_visibility is None else self._seg_visibility.copy()
+
+    def segment_absent(self) -> np.ndarray | None:
+        """Per segment, True where nothing of the target is visible at its end or it is outside the sensor, or None."""
+        return None if self._seg_absent is None else self._seg_absent.copy()
+
     def boxes(self) -> BoxTrack:
-        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels)."""
-        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
+        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels),
+        visibility (None where the file has none)."""
+        vis = self._load("boxes/visibility") if self._seg_visibility is not None else None
+        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")), vis)
 
 
 

@@ -99,6 +99,7 @@ class DatasetWriter:
         self._box_t: list[np.ndarray] = []
         self._box_xywh: list[np.ndarray] = []
         self._box_vis: list[np.ndarray] = []
+        self._visibility: list[np.ndarray | None] = []
         self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
         # per gzip column, the digest of every chunk handed to HDF5, in order: the read-back compares them
         self._digests: dict[str, list[bytes]] = {}
@@ -244,16 +245,26 @@ class DatasetWriter:
         except OSError:
             pass
 
-    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None) -> None:
-        """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal."""
+    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None, visibility: Any = None) -> None:
+        """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal;
+        visibility (N,): visible / amodal target pixels, 0..1 (every call gives it or none does)."""
         t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
         b = np.asarray(xywh, dtype=np.float32).reshape(-1, 4)
         v = b if xywh_visible is None else np.asarray(xywh_visible, dtype=np.float32).reshape(-1, 4)
         if not (len(t) == len(b) == len(v)):
             raise ValueError("box times and rows differ in length")
+        if visibility is not None:
+            visibility = np.asarray(visibility, dtype=np.float32).reshape(-1)
+            if len(visibility) != len(t):
+                raise ValueError("box times and visibility differ in length")
+            if np.any(~((visibility >= 0) & (visibility <= 1))):
+                raise ValueError("visibility must lie in 0..1")
+        if self._visibility and (self._visibility[0] is None) != (visibility is None):
+            raise ValueError("either every box append gives visibility or none does")
         self._box_t.append(t)
         self._box_xywh.append(b)
         self._box_vis.append(v)
+        self._visibility.append(visibility)
 
     def close(self, duration_us: int | None = None) -> Path:
         """Finish the file (ms_to_idx, per-segment ground truth, attributes) and rename it into place."""
@@ -312,6 +323,13 @@ class DatasetWriter:
             s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
             if self.annotated:
                 s.create_dataset("annotation", data=match, **ck)
+            if self._visibility and self._visibility[0] is not None:
+                vis = np.concatenate(self._visibility)
+                g.create_dataset("visibility", data=vis, maxshape=(None,), **ck)
+                seg_visibility = interpolate_boxes(box_t, np.repeat(vis[:, None], 4, 1), seg_t)[:, 0]
+                s.create_dataset("visibility", data=seg_visibility.astype(np.float32), **ck)
+                absent = np.isnan(seg_vis).any(axis=1) | np.isnan(seg_box).any(axis=1)
+                s.create_dataset("absent", data=absent.astype(np.uint8), **ck)
             if self._objects is not None:
                 o = f.create_group("objects")
                 o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
