@@ -211,3 +211,16 @@ def test_info_gives_each_objects_share(tmp_path, capsys):
     assert shares["target"] > 0 and shares["box"] > 0 and shares["noise"] == 0
     assert main(["info", str(path)]) == 0
     assert "1 target (target)" in capsys.readouterr().out
+
+
+def test_label_column_without_its_table_is_refused(tmp_path):
+    import h5py
+
+    from dvsot.dataset import Dataset
+    from dvsot.errors import UserError
+
+    path = _labelled_file(tmp_path)
+    with h5py.File(path, "r+") as f:
+        del f["objects/role"]
+    with pytest.raises(UserError, match=r"sq\.h5: damaged dvsot file \(missing /objects/role"):
+        Dataset(path)

@@ -134,6 +134,9 @@ class Dataset:
             return
         from dvsot.event_labels import table_problem
 
+        for name in ("objects/id", "objects/name", "objects/role"):
+            if name not in f:
+                raise Damaged(f"missing /{name} (a file with /events/object has the whole /objects table)")
         if f["events/object"].dtype != np.uint8:
             raise Damaged(f"/events/object has dtype {f['events/object'].dtype}, expected uint8")
         ids = self._load("objects/id").astype(np.int64)
