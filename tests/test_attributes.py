@@ -110,3 +110,15 @@ def test_ope_success_per_attribute(tmp_path):
     assert [p.name for p in paths] == ["attributes.md", "attributes.json", "attributes.png"]
     data = json.loads((tmp_path / "attributes.json").read_text())
     assert data["thresholds"]["occlusion_visibility"] == THRESHOLDS.occlusion_visibility
+
+
+def test_bench_report_holds_the_attribute_files(tmp_path):
+    from benchmarks.report import report_files, write_report
+    from benchmarks.tables import summarise
+
+    results = [_result("t", "a", [np.nan, 0.8, 0.2, 0.6], {"occlusion": [0, 0, 1, 1]})]
+    paths = write_report(tmp_path, summarise(results), results)
+    for name in ("attributes.md", "attributes.json", "attributes.png"):
+        assert (tmp_path / name).is_file() and report_files()[name] == "tables"
+    assert "occlusion (2 seg)" in (tmp_path / "attributes.md").read_text()
+    assert json.loads((tmp_path / "run.json").read_text()) and paths["manifest"]

@@ -69,3 +69,11 @@ def test_visibility_out_of_range_is_refused(tmp_path):
         f["segments"].create_dataset("visibility", data=np.full(8, 2.0, np.float32))
     with pytest.raises(UserError, match=r"v\.h5: damaged dvsot file \(/segments/visibility holds values outside 0\.\.1\)"):
         Dataset(path)
+
+
+def test_info_counts_absent_segments(tmp_path):
+    from dvsot.info import dataset_info
+
+    info = dataset_info(_write(tmp_path / "v.h5"))
+    assert info["segments_absent"] == 5
+    assert info["visibility_median"] == pytest.approx(0.375)  # 0.75, 0.5, 0.25, 0, 0, 0, 0.5, 1: (0.25 + 0.5) / 2
