@@ -76,42 +76,46 @@ def table_problem(ids: np.ndarray, names: Sequence[str], roles: Sequence[str]) -
     return None
 
 
+def label_frames(before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(early, late): the id (u1, height x width) an event at each pixel gets by the module's rules 1-4 when it
+    is nearer the sample before (early) or after (late); before and after are the label frames at t0 and t1."""
+    a, b = np.asarray(before, LABEL_DTYPE), np.asarray(after, LABEL_DTYPE)
+    changed = a != b
+    out = []
+    for nearer in (a, b):
+        moved = np.where(a == BACKGROUND_ID, b, np.where(b == BACKGROUND_ID, a, nearer))  # rules 1, 3 and 4
+        ring = _max3x3(np.where(changed, moved, BACKGROUND_ID).astype(LABEL_DTYPE))  # rule 2: a moved neighbour
+        out.append(np.where(moved == BACKGROUND_ID, ring, moved).astype(LABEL_DTYPE))
+    return out[0], out[1]
+
+
+def _max3x3(ids: np.ndarray) -> np.ndarray:
+    """The largest id in each pixel's 3x3 neighbourhood (outside the frame counts as 0)."""
+    h, w = ids.shape
+    padded = np.zeros((h + 2, w + 2), ids.dtype)
+    padded[1:-1, 1:-1] = ids
+    out = ids.copy()
+    for dy in range(3):
+        for dx in range(3):
+            if dy != 1 or dx != 1:
+                np.maximum(out, padded[dy:dy + h, dx:dx + w], out=out)
+    return out
+
+
 def event_objects(x: np.ndarray, y: np.ndarray, t: np.ndarray, signal: np.ndarray | None, t0: int, t1: int,
                   before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """The object id (u1) of each event at pixel (x, y), time t in (t0, t1] (microseconds), by the module's rule.
 
     before and after are the label frames (height, width) at t0 and t1; signal False marks noise events.
     """
-    width = before.shape[1]
-    pix = np.asarray(y, np.intp) * width + np.asarray(x, np.intp)
-    a = before.reshape(-1)[pix]
-    b = after.reshape(-1)[pix]
+    early, late = label_frames(before, after)
+    pix = np.asarray(y, np.intp) * before.shape[1] + np.asarray(x, np.intp)
     t = np.asarray(t, np.int64)
     later = (t - t0) >= (t1 - t)  # rule 4: the nearer sample, the midpoint to the later one
-    out = _moved(a, b, later)
-    ring = np.flatnonzero(out == BACKGROUND_ID)  # rule 2
-    if len(ring):
-        h = before.shape[0]
-        ys, xs, lt = np.asarray(y, np.intp)[ring], np.asarray(x, np.intp)[ring], later[ring]
-        near = np.zeros(len(ring), before.dtype)
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dy or dx:
-                    q = np.clip(ys + dy, 0, h - 1) * width + np.clip(xs + dx, 0, width - 1)
-                    np.maximum(near, _moved(before.reshape(-1)[q], after.reshape(-1)[q], lt, changed_only=True),
-                               out=near)
-        out[ring] = near
+    out = np.where(later, late.reshape(-1)[pix], early.reshape(-1)[pix])
     if signal is not None:
         out[~np.asarray(signal, bool)] = NOISE_ID
     return out.astype(LABEL_DTYPE, copy=False)
-
-
-def _moved(a: np.ndarray, b: np.ndarray, later: np.ndarray, changed_only: bool = False) -> np.ndarray:
-    """Rules 1, 3 and 4 for pixels showing a at t0 and b at t1 (later: the event is nearer t1); with changed_only,
-    background (0) where a == b."""
-    out = np.where(later, b, a)
-    out = np.where(a == BACKGROUND_ID, b, np.where(b == BACKGROUND_ID, a, out))
-    return np.where(a == b, BACKGROUND_ID, out) if changed_only else out
 
 
 class EventLabeller:
