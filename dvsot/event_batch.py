@@ -45,7 +45,8 @@ class EventBatch:
         if all(b.object is not None for b in batches):
             obj = np.concatenate([b.object for b in batches])
         return EventBatch(np.concatenate([b.x for b in batches]), np.concatenate([b.y for b in batches]),
-                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig, obj)
+                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig,
+                          object=obj)
 
     def to_structured(self) -> np.ndarray:
         """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker): STRUCTURED_DTYPE."""
@@ -74,4 +75,4 @@ class EventBatch:
         sig = None if self.signal is None else self.signal[mask_or_index]
         obj = None if self.object is None else self.object[mask_or_index]
         return EventBatch(self.x[mask_or_index], self.y[mask_or_index], self.t[mask_or_index],
-                          self.p[mask_or_index], sig, obj)
+                          self.p[mask_or_index], sig, object=obj)

@@ -22,7 +22,7 @@ def _events(rng, n, x0, y0, w, h, t0, ids):
     x = rng.integers(x0, x0 + w, n).astype(np.uint16)
     y = rng.integers(y0, y0 + h, n).astype(np.uint16)
     t = np.sort(rng.integers(t0, t0 + SEG, n)).astype(np.int64)
-    return EventBatch(x, y, t, np.ones(n, np.uint8), None, np.full(n, ids, np.uint8))
+    return EventBatch(x, y, t, np.ones(n, np.uint8), object=np.full(n, ids, np.uint8))
 
 
 def _file(path, scene=None):

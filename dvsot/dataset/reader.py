@@ -226,7 +226,7 @@ class Dataset:
         if problem:
             raise self._damaged(problem)
         sig = columns["signal"].astype(bool) if self._has_signal else None
-        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig, obj)
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig, object=obj)
 
     def events(self, t0_us: int, t1_us: int) -> EventBatch:
         """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""
