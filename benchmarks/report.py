@@ -17,6 +17,7 @@ from benchmarks.protocol import SequenceResult
 MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.outputs)
 VIDEO_SEGMENTS = 300  # frames of a video preview, one per segment
 OPE_FILES = ("ope.json", "ope.md", "success_plot.png", "precision_plot.png")
+ATTRIBUTE_FILES = ("attributes.md", "attributes.json", "attributes.png")  # benchmarks.attributes.write_attributes
 
 
 def video_name(sequence: str) -> str:
@@ -31,7 +32,7 @@ def report_files(protocol: str = "ar", plots: bool = False, videos: Sequence[str
     """{file name in the report directory: what asks for it ('tables', 'manifest', 'plots', 'video', 'energy')}."""
     from benchmarks.tables import TABLE_FILES
 
-    names = {n: "tables" for n in (OPE_FILES if protocol == "ope" else TABLE_FILES.values())}
+    names = {n: "tables" for n in (*(OPE_FILES if protocol == "ope" else TABLE_FILES.values()), *ATTRIBUTE_FILES)}
     names[MANIFEST] = "manifest"
     if plots:
         names["iou_over_time.png"] = "plots"
@@ -72,6 +73,9 @@ def _write_all(out: Path, summary, results: list[SequenceResult], protocol: str,
         paths: dict[str, Path | str] = {f"ope:{x.name}": x for x in write_ope(summary, out)}
     else:
         paths = dict(write_tables(summary, out))
+    from benchmarks.attributes import write_attributes
+
+    paths.update({f"attributes:{x.name}": x for x in write_attributes(results, out, protocol)})
     files = write_sequence_files(results, out, vot=protocol != "ope")
     if files:
         paths["per-sequence"] = f"{out}/<tracker>/ ({len(files)} files)"

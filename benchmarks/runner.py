@@ -33,6 +33,10 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
         if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
             sys.modules["torch"].set_num_threads(1)
         result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
+        if result.error is None:
+            from benchmarks.attributes import add_attributes
+
+            add_attributes(result, ds)
         if protocol == "ope":
             from benchmarks.ope import add_centre_errors
 

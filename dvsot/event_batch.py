@@ -18,7 +18,8 @@ STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64)
 @dataclass(frozen=True)
 class EventBatch:
     """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or None),
-    noise_kind (u1 or None: NOISE_KINDS' codes)."""
+    noise_kind (u1 or None: NOISE_KINDS' codes),
+    object (the id of the object that made each event, u1, dvsot.event_labels; None where not labelled)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -26,6 +27,7 @@ class EventBatch:
     p: np.ndarray
     signal: np.ndarray | None = None
     noise_kind: np.ndarray | None = None
+    object: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -47,8 +49,12 @@ class EventBatch:
         kind = None
         if all(b.noise_kind is not None for b in batches):
             kind = np.concatenate([b.noise_kind for b in batches])
+        obj = None
+        if all(b.object is not None for b in batches):
+            obj = np.concatenate([b.object for b in batches])
         return EventBatch(np.concatenate([b.x for b in batches]), np.concatenate([b.y for b in batches]),
-                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig, kind)
+                          np.concatenate([b.t for b in batches]), np.concatenate([b.p for b in batches]), sig, kind,
+                          object=obj)
 
     def to_structured(self) -> np.ndarray:
         """The events as one structured array x, y, t (us), p (i1: 1 brighter, 0 darker): STRUCTURED_DTYPE."""
@@ -76,5 +82,6 @@ class EventBatch:
         """The events picked by a boolean mask or an index array."""
         sig = None if self.signal is None else self.signal[mask_or_index]
         kind = None if self.noise_kind is None else self.noise_kind[mask_or_index]
+        obj = None if self.object is None else self.object[mask_or_index]
         return EventBatch(self.x[mask_or_index], self.y[mask_or_index], self.t[mask_or_index],
-                          self.p[mask_or_index], sig, kind)
+                          self.p[mask_or_index], sig, kind, object=obj)

@@ -1,4 +1,5 @@
-"""What a dataset file holds: resolution, duration, events, rate, segments, box coverage, parameters (`dvsot info`)."""
+"""What a dataset file holds: resolution, duration, events, rate, each object's share, segments, box coverage,
+parameters (`dvsot info`)."""
 
 from __future__ import annotations
 
@@ -41,6 +42,16 @@ def dataset_info(path: str | os.PathLike) -> dict:
             "t_offset_us": ds.t_offset_us,
             "ground_truth": "annotations" if ds.annotated else "rendered",
         }
+        counts = ds.object_counts()
+        if counts is not None:  # per-event labels (dvsot.event_labels): each object's share of the events
+            out["objects"] = [dict(row, events=counts[row["id"]],
+                                   share=counts[row["id"]] / ds.num_events if ds.num_events else 0.0)
+                              for row in ds.objects]
+        absent = ds.segment_absent()
+        if absent is not None:  # rendered: how much of the target is seen (docs/dataset-files.md)
+            vis = ds.segment_visibility()
+            out["segments_absent"] = int(absent.sum())
+            out["visibility_median"] = float(np.nanmedian(vis)) if np.isfinite(vis).any() else None
         if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
             out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
         if have.any():

@@ -74,13 +74,15 @@ def format_rows(fields: list[tuple[np.ndarray, int]], seps: list[bytes], end: by
 
 
 def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-               width: int, height: int, kind: str) -> None:
-    """Write events (t microseconds >= 0, pixels, polarity 0/1) as 'csv' (header t,x,y,p) or 'txt' (seconds)."""
+               width: int, height: int, kind: str, objects: np.ndarray | None = None) -> None:
+    """Write events (t microseconds >= 0, pixels, polarity 0/1) as 'csv' (header t,x,y,p; with objects, the
+    object id of each event as a fifth column, t,x,y,p,object) or 'txt' (seconds; no object column)."""
     t = np.asarray(t, np.int64)
     if len(t) and t.min() < 0:
         raise ValueError("text export needs timestamps >= 0")
     with open(path, "wb") as fh:
-        fh.write(b"t,x,y,p\n" if kind == "csv" else f"{width} {height}\n".encode())
+        labelled = objects is not None and kind == "csv"
+        fh.write((b"t,x,y,p,object\n" if labelled else b"t,x,y,p\n") if kind == "csv" else f"{width} {height}\n".encode())
         if not len(t):
             return
         scratch: dict = {}
@@ -88,7 +90,10 @@ def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndar
         for i in range(0, len(t), _ROWS_PER_CHUNK):
             s = slice(i, i + _ROWS_PER_CHUNK)
             xyp = [(x[s], 0), (y[s], 0), (p[s], 0)]
-            if kind == "csv":
+            if labelled:
+                fh.write(format_rows([(t[s], 0)] + xyp + [(objects[s], 0)], [b",", b",", b",", b","],
+                                     tops=[int(t[-1])] + xyp_tops + [255], scratch=scratch))
+            elif kind == "csv":
                 fh.write(format_rows([(t[s], 0)] + xyp, [b",", b",", b","], tops=[int(t[-1])] + xyp_tops,
                                      scratch=scratch))
             else:
@@ -189,12 +194,20 @@ def read_text(path: str | os.PathLike, kind: str, header: bool = False) -> tuple
         raise UserError(f"{p}: cannot read events ({exc.strerror or exc})") from None
     if rows.shape[0] == 0:
         raise UserError(f"{p}: no events")
+    if kind == "csv" and skip and rows.shape[1] == 5 and _csv_fields(p)[4:] == ["object"]:
+        rows = rows[:, :4]  # dvsot export's object labels: not event data, left out
     if rows.shape[1] != 4:
         raise UserError(f"{p}:{line_of_row(p, skip, 0)}: {rows.shape[1]} fields, expected 4 (t, x, y, p)")
     t, bad, why = exact_microseconds(rows[:, 0], kind)
     if bad is not None:
         raise UserError(f"{p}:{line_of_row(p, skip, bad)}: {why}")
     return t, rows[:, 1], rows[:, 2], rows[:, 3], skip, size
+
+
+def _csv_fields(path: Path) -> list[str]:
+    """The names in a CSV file's header line, stripped."""
+    with open(path, "rb") as fh:
+        return [c.strip().decode(errors="replace") for c in fh.readline().split(b"#")[0].split(b",")]
 
 
 def _loadtxt_problem(path: Path, skip: int, exc: ValueError) -> str:

@@ -317,6 +317,10 @@ def run(args: argparse.Namespace) -> int:
         # computed before writing: a crash here leaves --out as it was
         energy = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
     print(format_ope(summary) if args.protocol == "ope" else terminal(summary))
+    from benchmarks.attributes import attribute_ope, attribute_scores, format_attributes
+
+    print("\nper attribute:\n" + format_attributes(
+        attribute_ope(results) if args.protocol == "ope" else attribute_scores(results), args.protocol))
     if energy is not None:
         from benchmarks.energy_table import format_energy_table
 

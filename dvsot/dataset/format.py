@@ -10,6 +10,7 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /events/signal         u1  1 = signal, 0 = noise event (present when the generator flags them)
     /events/noise_kind     u1  0 = signal, 1 = shot noise, 2 = leak, 3 = hot pixel (present when a sensor model
                                beyond `ideal` made the events: dvsot.event_batch.NOISE_KINDS)
+    /events/object         u1  id of the object that made the event (rendered scenes; dvsot.event_labels)
     /events/ms_to_idx      u8  index of the first event with t >= ms * 1000, for ms = 0 .. duration_ms
     /boxes/t               i8  microseconds, one row per rendered sample
     /boxes/xywh            f4  (N, 4) amodal target box (target rendered alone); NaN = absent
@@ -17,8 +18,15 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /segments/t            i8  (M,) end time of each segment, microseconds
     /segments/xywh         f4  (M, 4) ground truth per segment, at the segment's end time
     /segments/xywh_visible f4  (M, 4) visible-part ground truth per segment
+    /boxes/visibility      f4  (N,) rendered scenes: visible target pixels / amodal target pixels (on the sensor)
+    /segments/visibility   f4  (M,) the same at each segment's end, linear between samples (NaN outside the track)
+    /segments/absent       u1  (M,) 1 = nothing of the target visible at the segment's end (its visible box NaN)
+                               or no amodal box (outside the sensor)
     /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
     /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
+    /objects/id            u1  (K,) the ids /events/object uses (present exactly when it is)
+    /objects/name          S   (K,) each object's name (UTF-8)
+    /objects/role          S   (K,) background, target, distractor, occluder or noise
     /t_offset              i8  scalar, microseconds added to /events/t to get the recording's own clock
                                (0 for synthetic data)
 
@@ -83,22 +91,28 @@ LAYOUT: dict[str, tuple[str, int]] = {
     "events/signal": ("uib", 1), "events/noise_kind": ("ui", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
     "boxes/t": ("ui", 1), "boxes/xywh": ("uif", 2), "boxes/xywh_visible": ("uif", 2),
     "segments/t": ("ui", 1), "segments/xywh": ("uif", 2), "segments/xywh_visible": ("uif", 2),
-    "segments/annotation": ("i", 1),
+    "segments/annotation": ("i", 1), "events/object": ("ui", 1), "objects/id": ("ui", 1),
+    "objects/name": ("S", 1), "objects/role": ("S", 1),
+    "boxes/visibility": ("f", 1), "segments/visibility": ("f", 1), "segments/absent": ("uib", 1),
 }
 MAX_PIXELS = 1 << 16  # x and y are stored as u2
 # Datasets that must have as many rows as the first one of their group.
-SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal", "events/noise_kind"),
-             ("boxes/t", "boxes/xywh", "boxes/xywh_visible"),
-             ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation"))
+SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal", "events/noise_kind", "events/object"),
+             ("objects/id", "objects/name", "objects/role"),
+             ("boxes/t", "boxes/xywh", "boxes/xywh_visible", "boxes/visibility"),
+             ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation", "segments/visibility",
+              "segments/absent"))
 
 
 @dataclass(frozen=True)
 class BoxTrack:
-    """The target's box at every rendered sample: t (microseconds), xywh and xywh_visible (pixels, NaN = absent)."""
+    """The target's box at every rendered sample: t (microseconds), xywh and xywh_visible (pixels, NaN = absent),
+    visibility (visible / amodal target pixels, 0..1; None where the file has none)."""
 
     t: np.ndarray
     xywh: np.ndarray
     xywh_visible: np.ndarray
+    visibility: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -111,6 +125,8 @@ class Segment:
     events: EventBatch
     box: np.ndarray
     box_visible: np.ndarray | None = None
+    visibility: float | None = None  # visible / amodal target pixels at t1_us (None: not in the file)
+    absent: bool | None = None  # nothing of the target visible at t1_us, or outside the sensor
 
 
 def encode_attr(value: Any) -> Any:

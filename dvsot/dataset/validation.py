@@ -12,7 +12,8 @@ from dvsot import validate
 from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
 from dvsot.errors import exception_line
 
-_KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"}
+_KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers", "S": "fixed-length byte strings",
+               "f": "floats"}
 
 
 class Damaged(Exception):
