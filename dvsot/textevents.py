@@ -118,7 +118,7 @@ def line_of_row(path: Path, skip: int, row: int) -> int:
     return lines[row] if 0 <= row < len(lines) else len(lines) + skip
 
 
-CSV_HEADER = b"t,x,y,p"  # the header line dvsot writes, known without --header
+CSV_HEADERS = (b"t,x,y,p", b"t,x,y,p,object")  # the header lines dvsot writes (without, with labels), known without --header
 # |t| bounds under which float64 holds every microsecond exactly: CSV microseconds below 2**53, TXT seconds
 # below 2**31 (a float's spacing there is 0.24 us, so two microseconds never share a float; epoch times until 2038)
 MAX_CSV_US = 2.0 ** 53
@@ -128,13 +128,13 @@ MAX_TXT_SECONDS = 2.0 ** 31
 def _header(path: Path, kind: str, header: bool = False) -> tuple[int, tuple[int, int] | None]:
     """(lines before the data, sensor size from a TXT 'width height' line or None).
 
-    A CSV's first line is data unless `header` says it is not or it is dvsot's own 't,x,y,p': a line that
+    A CSV's first line is data unless `header` says it is not or it is dvsot's own 't,x,y,p' (or 't,x,y,p,object'): a line that
     is neither is parsed as an event, and fails naming its line when it is not one.
     """
     with open(path, "rb") as fh:
         first = fh.readline().split(b"#")[0].strip()
     if kind == "csv":
-        own = b"".join(first.split()).lower() == CSV_HEADER
+        own = b"".join(first.split()).lower() in CSV_HEADERS
         return (1 if header or own else 0), None
     cells = first.split()
     if len(cells) == 2:

@@ -64,8 +64,8 @@ def test_frames_that_do_not_match_the_sequence_are_refused(tmp_path):
     from benchmarks.robustness import resimulate
     from dvsot.errors import UserError
 
-    seq, frames = kept_sequence(tmp_path, n=5)
-    (frames / "000004.npy").unlink()
-    with pytest.raises(UserError, match=r"4 frames \(\.npy\), but .* has 5 render samples"):
+    seq, frames = kept_sequence(tmp_path, n=12)
+    (frames / "000011.npy").unlink()
+    with pytest.raises(UserError, match=r"11 frames \(\.npy\), but .* has 12 render samples"):
         resimulate(seq, frames, tmp_path / "x.h5", {"preset": "davis346"})
     assert not (tmp_path / "x.h5").exists()

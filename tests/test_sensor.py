@@ -194,7 +194,7 @@ def test_noise_kinds_are_written_and_read_back(tmp_path):
     stack = np.clip(0.3 + 0.05 * rng.standard_normal((8, 24, 32)), 0, 1).astype(np.float32)
     np.save(tmp_path / "f.npy", stack)
     params = EventParams(preset="davis346", shot_noise_hz=200.0, hot_pixel_fraction=0.01, hot_pixel_hz=2000.0)
-    summary = simulate_file(tmp_path / "f.npy", tmp_path / "o.h5", params, 1, fps=1000)
+    summary = simulate_file(tmp_path / "f.npy", tmp_path / "o.h5", params, 1, fps=1000, segment_us=5000)
     assert summary["preset"] == "davis346" and "readout_dropped" in summary
     with h5py.File(tmp_path / "o.h5") as f:
         assert "noise_kind" in f["events"]
