@@ -76,6 +76,26 @@ class TrainConfig(TrainBudget):
         return self.init == "calibrate"
 
 
+def training_note(train_config: dict | None) -> str | None:
+    """What makes a checkpoint's training (its metadata's train_config) differ from today's preset in the error-time
+    rule or the initialisation, or None (also when nothing was recorded). A config without `error_time` was
+    trained before the rule became a setting: with the maximum over all steps."""
+    if not isinstance(train_config, dict):
+        return None
+    ways = []
+    rule = train_config.get("error_time")
+    preset_rule = TrainConfig.model_fields["error_time"].default
+    if rule is None:
+        ways.append("the old error-time rule (V's maximum over all steps; no error_time recorded)")
+    elif rule != preset_rule:
+        ways.append(f"error_time {rule!r} (the preset's is {preset_rule!r})")
+    init = train_config.get("init", "calibrate" if train_config.get("calibrate") else "kaiming")
+    preset_init = TrainConfig.model_fields["init"].default
+    if init != preset_init:
+        ways.append(f"init {init!r} (the preset's is {preset_init!r})")
+    return ("trained with " + " and ".join(ways)) if ways else None
+
+
 def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:
     """Indices of segments whose ground truth exists and is at least min_box_px on each side."""
     b = ds.segment_boxes()

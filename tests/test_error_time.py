@@ -88,3 +88,74 @@ def test_shipped_checkpoint_with_negative_target_row_learns_only_with_stca(tmp_p
         grads[rule] = [float(layer.weight.grad.abs().sum()) for layer in layers]
     assert grads["max"] == [0.0] * len(layers)
     assert all(g > 0 for g in grads["stca"]), grads["stca"]
+
+
+def test_checkpoints_trained_the_old_way_load_with_one_note(tmp_path) -> None:
+    """No error_time recorded (the shipped checkpoints) is the old rule; "max" and a non-preset init are named;
+    a checkpoint of today's preset, or one without a training config, loads without a note."""
+    import warnings
+
+    from sctn.checkpoint import TrainingRuleWarning, load_checkpoint, save_checkpoint
+    from sctn.network import SCTN
+    from sctn.train import TrainConfig
+
+    def notes(meta: dict) -> list[str]:
+        path = save_checkpoint(tmp_path / "c.pt", SCTN(), meta)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            load_checkpoint(path)
+        return [str(w.message) for w in caught if issubclass(w.category, TrainingRuleWarning)]
+
+    old = TrainConfig().model_dump()
+    del old["error_time"], old["init"]
+    old["calibrate"] = False
+    assert len(notes({"train_config": old})) == 1 and "old error-time rule" in notes({"train_config": old})[0]
+    assert "init 'calibrate'" in notes({"train_config": {**old, "calibrate": True}})[0]
+    max_rule = notes({"train_config": TrainConfig(error_time="max", init="fluctuation").model_dump()})
+    assert len(max_rule) == 1 and "error_time 'max'" in max_rule[0] and "init 'fluctuation'" in max_rule[0]
+    assert notes({"train_config": TrainConfig().model_dump()}) == [] and notes({}) == []
+
+
+def test_calibrate_flag_is_the_calibrate_init() -> None:
+    from sctn.train import TrainConfig, TrainConfigError
+
+    assert TrainConfig(calibrate=True).init == "calibrate" and TrainConfig(calibrate=True).calibrate
+    assert TrainConfig(calibrate=False).init == "kaiming" and "calibrate" not in TrainConfig().model_dump()
+    with pytest.raises(TrainConfigError):
+        TrainConfig(calibrate=True, init="fluctuation")
+    with pytest.raises(TrainConfigError, match="init"):
+        TrainConfig(init="xavier")
+
+
+def test_fluctuation_init_sets_the_membrane_fluctuations_to_theta_over_xi() -> None:
+    """On Bernoulli input of rate nu, conv1's V at the last step varies over input draws (fixed weights) by
+    n sigma_w^2 nu (1 - nu) eps2 = (theta / xi)^2 (1 - nu): the closed form the initialisation solves."""
+    from sctn.network import SCTN, window_rate
+
+    torch.manual_seed(0)
+    nu, xi = 0.05, 2.0
+    x = (torch.rand(48, 10, 2, 107, 107) < nu).float()
+    net = SCTN()
+    stds = net.fluctuation_init(x[:8], xi=xi)
+    assert len(stds) == 6 and all(s > 0 for s in stds)
+    assert window_rate(net.convs[0], x[:8].transpose(0, 1)) == pytest.approx(nu, rel=0.05)
+    with torch.no_grad():
+        v = net._run(x, record=False, capture=0)[1][-1]  # (B, C, H, W) conv1's V at the last step
+    measured = float(v.var(dim=0).mean())
+    theta = net.neurons[0].theta
+    assert measured == pytest.approx((theta / xi) ** 2 * (1 - nu), rel=0.15)
+
+
+def test_window_rate_counts_only_windows_that_receive_input() -> None:
+    from torch import nn
+
+    from sctn.network import window_rate
+
+    conv = nn.Conv2d(2, 4, 2, stride=2)
+    spikes = torch.zeros(5, 1, 2, 4, 4)
+    spikes[0, 0, 0, 0, 0] = 1  # one spike in the top-left window, three more in the same window later
+    spikes[1:4, 0, 1, 1, 1] = 1
+    assert window_rate(conv, spikes) == pytest.approx(4 / (2 * 2 * 2 * 5))
+    fc = nn.Linear(32, 3)
+    assert window_rate(fc, spikes.reshape(5, 1, -1)) == pytest.approx(4 / (32 * 5))
+    assert window_rate(fc, torch.zeros(5, 2, 32)) == 0.0
