@@ -163,7 +163,7 @@ def paper_rows(n_candidates: int) -> dict:
     rows = {"paper SCTN (Table 3, per evaluation)": tracker_energy(n_candidates, ac_ops=PAPER_SCTN_AC)}
     for name, macs in PAPER_SIAMESE_MAC.items():
         rows[f"paper {name} (Table 3, per frame)"] = tracker_energy(1, mac_ops=macs)
-    return rows
+    return {name: _flat(row) for name, row in rows.items()}
 
 
 def ann_rows(n_candidates: int, twin=None, siamfc=None, siamfc_scales: int = 3, response_up: int = 16) -> dict:
@@ -193,11 +193,12 @@ def ann_rows(n_candidates: int, twin=None, siamfc=None, siamfc_scales: int = 3, 
         rows[f"SiamFC (siamfc), {siamfc_scales} scales"] = tracker_energy(
             1, mac_ops=frame_macs(siamfc, siamfc_scales, response_up)["mac_ops"], state_updates=acts,
             state_update_pj=E_ACTIVATION_PJ)
-    return rows
+    return {name: _flat(row) for name, row in rows.items()}
 
 
 def _flat(row: dict) -> dict:
-    """A tracker_energy row as the table keeps it: its per-segment figures at the top, per_evaluation beside them."""
+    """A tracker_energy row as the table keeps it: its per-segment figures at the top (ac_ops, mac_ops, energy_pj,
+    state_updates, state_energy_pj), evaluations_per_segment and per_evaluation beside them."""
     return {**row["per_segment"], "evaluations_per_segment": row["evaluations_per_segment"],
             "per_evaluation": row["per_evaluation"]}
 
@@ -211,11 +212,10 @@ def energy_table(model, files: list[Path], n_candidates: int = TRACK.n, n_segmen
     groups = tuned_groups(model, files, n_segments, seed, finetune)
     sctn = sctn_energy(groups, n_candidates, seed, SCTN_MODES)
     firing = sctn["firing"]
-    rows = {REFERENCE: sctn["rows"]["per candidate"],
-            "SCTN fast search (bilinear)": sctn["rows"]["fast bilinear"],
-            "SCTN fast search (nearest cell)": sctn["rows"]["fast nearest"],
+    rows = {REFERENCE: _flat(sctn["rows"]["per candidate"]),
+            "SCTN fast search (bilinear)": _flat(sctn["rows"]["fast bilinear"]),
+            "SCTN fast search (nearest cell)": _flat(sctn["rows"]["fast nearest"]),
             **ann_rows(n_candidates, twin, siamfc), **paper_rows(n_candidates)}
-    rows = {name: _flat(row) for name, row in rows.items()}
     ref = rows[REFERENCE]["energy_pj"]
     for row in rows.values():
         row["x_sctn"] = row["energy_pj"] / ref if ref else float("nan")
