@@ -66,7 +66,7 @@ def training_key(row: str) -> str:
 
 
 def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path], budget: dict, workdir: Path,
-            n_candidates: int, max_segments: int | None) -> dict:
+            n_candidates: int, max_segments: int | None, val_files: list[Path] | None = None) -> dict:
     """Train (or reuse) the network of one (row, seed) and track the test files; {row, seed, A, R, ARscore, ...}."""
     import torch
 
@@ -87,9 +87,8 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
         model, meta = load_checkpoint(ckpt)
         minutes, silent = meta.get("history", {}).get("minutes"), meta.get("history", {}).get("silent")
     else:
-        cfg = TrainConfig(seed=seed, network=NetworkConfig(**net_kw), val_every=10**9, val_segments=2,
-                          **budget, **train_kw)
-        model, history = train(train_files, cfg, progress=False)
+        cfg = TrainConfig(seed=seed, network=NetworkConfig(**net_kw), val_every=10**9, **budget, **train_kw)
+        model, history = train(train_files, cfg, progress=False, val_files=val_files)
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
         minutes, silent = history["minutes"], history.get("silent")
     ious, tuned = [], {}
@@ -227,6 +226,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--segments-per-epoch", type=int, default=400)
     p.add_argument("--batch-segments", type=int, default=2)
     p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--val-data", nargs="+", default=None, help="validation files / dirs / globs (any split): the "
+                   "silence check (target V_max on positives) on them instead of every 10th training segment")
+    p.add_argument("--val-segments", type=int, default=2, help="validation segments of the silence check")
     p.add_argument("--candidates", type=int, default=TRACK.n)
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
     p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
@@ -243,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     budget = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
-              "lr": a.lr, "max_minutes": a.minutes}
+              "lr": a.lr, "max_minutes": a.minutes, "val_segments": a.val_segments}
     log = out / "runs.jsonl"
     done = [r for r in read_log(log) if "error" not in r]  # failed attempts are run again
     have = {(r["row"], r["seed"]) for r in done}
@@ -262,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
                 if not (a.train and a.test):
                     p.error("give --train and --test, or --ci")
                 train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
-            args = (train_files, test_files, budget, out, a.candidates, a.max_segments)
+            val_files = find_datasets(a.val_data, None) if a.val_data else None
+            args = (train_files, test_files, budget, out, a.candidates, a.max_segments, val_files)
 
             def on_result(r: dict) -> None:
                 _append(log, r)
