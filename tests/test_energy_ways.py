@@ -60,3 +60,21 @@ def test_ablation_rows_for_the_rule_the_inits_and_the_tracker() -> None:
                         ("finetune_on_reinit", {"finetune_on_reinit": True})):
         assert ROWS[row] == ({}, {}, option) and training_key(row) == "paper"  # the preset's networks, tuned otherwise
     assert ROWS["background_term"][0] == {"background_term": True}
+
+
+def test_learning_curves_read_the_history_and_draw(tmp_path) -> None:
+    import json
+
+    from benchmarks.learning_curves import main, read_curves
+
+    meta = {"model": "sctn", "train_config": {"seed": 3}, "history": {"validation": "files", "val": [
+        {"step": 50, "loss": 0.4, "accuracy": 0.8}, {"step": 100, "loss": 0.3, "accuracy": 0.9, "arscore": 0.7},
+        {"step": 100, "loss": 0.3, "accuracy": 0.9, "arscore": 0.71}]}}
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(meta))
+    c = read_curves(path)
+    assert c["loss"] == [(50, 0.4), (100, 0.3)] and c["arscore"] == [(100, 0.71)] and "seed 3" in c["label"]
+    assert main([str(path), "-o", str(tmp_path / "c.png")]) == 0 and (tmp_path / "c.png").stat().st_size > 0
+    empty = tmp_path / "e.json"
+    empty.write_text(json.dumps({"history": {"val": []}}))
+    assert main([str(empty), "-o", str(tmp_path / "e.png")]) == 2 and not (tmp_path / "e.png").exists()
