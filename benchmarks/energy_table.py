@@ -5,7 +5,7 @@ candidate box for SCTN and its twin, one frame for a Siamese tracker) and per tr
 candidates for SCTN and its twin, x 1 for a Siamese tracker), with the neuron-state updates (C-LIF
 updates; an ANN's activations) in columns of their own. The paper's Table 3 rows are restated the
 same two ways: its 7.69e6 ACs "on processing a frame or a segment" with firing rates sampled per
-segment are read as one evaluation of the network (the issue's reading: 256 of them track a segment).
+segment are read as one evaluation of the network (256 of them track a segment).
 SCTN is counted as the tracker runs it: fine-tuned on each file's first labelled segment (Algorithm
 1), then on that file's sampled segments.
 

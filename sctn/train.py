@@ -235,7 +235,7 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
             # a network whose target output never rises above 0 cannot track; with eq. 5 and no bias nothing
             # revives it (no spike, no surrogate gradient), so say so rather than hand it on as trained
             history["silent"] = final["vmax_max"] <= 0.0
-            # the goal's margin: a target neuron whose mean V_max on positives stays below it barely responds
+            # a target neuron whose mean V_max on positives stays below NEARLY_SILENT barely responds: said, not refused
             history["target_vmax_pos"] = final["vmax_pos"]
             history["nearly_silent"] = not final["vmax_pos"] >= NEARLY_SILENT
         history.update(train_segments=len(train_items), val_segments=len(val_pick))
