@@ -11,6 +11,8 @@ then the table prints mean and standard deviation over seeds.
     python -m benchmarks.ablation --rows paper loss_linear loss_basic --seeds 10 ...  # Fig. 7A
     python -m benchmarks.ablation --ci --rows paper loss_linear --seeds 2   # the two tiny CI scenes, quick
     python -m benchmarks.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
+    python -m benchmarks.ablation --train data/dvsot21 --val-data data/val --test data/val --test-split any \
+        --rows paper error_time_max calibration init_fluctuation --seeds 5 --out runs/choices   # chosen on validation
 
 With --scheduler local:N | tcp://HOST:PORT each (row, seed) is one task on Dask (dvsot.cluster.run_tasks, as
 `dvsot generate` and `dvsot bench` use it); the workers need the data files and --out at the same paths. A
@@ -217,6 +219,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--train", nargs="+", help="training files / dirs / globs (split train)")
     p.add_argument("--test", nargs="+", help="test files / dirs / globs (split test)")
+    p.add_argument("--test-split", default="test", help="split of the --test files, or 'any' (validation scenes "
+                   "have none: --test data/val --test-split any makes the rows' choice on validation)")
     p.add_argument("--ci", action="store_true", help="use the two tiny CI scenes (rendered into a temp dir)")
     p.add_argument("--rows", nargs="+", default=["paper"], choices=sorted(ROWS))
     p.add_argument("--seeds", type=int, default=5, help="seeds 0 .. N-1")
@@ -263,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 if not (a.train and a.test):
                     p.error("give --train and --test, or --ci")
-                train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
+                train_files = find_datasets(a.train, "train")
+                test_files = find_datasets(a.test, None if a.test_split == "any" else a.test_split)
             val_files = find_datasets(a.val_data, None) if a.val_data else None
             args = (train_files, test_files, budget, out, a.candidates, a.max_segments, val_files)
 
