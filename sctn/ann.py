@@ -157,16 +157,17 @@ def twin_macs(model: SCTNTwin) -> dict:
     return count_macs(model, torch.zeros(1, cfg.steps, 2, cfg.input_size, cfg.input_size))
 
 
-def train_twin(files: list[Path], cfg, progress: bool = True) -> tuple[SCTNTwin, dict]:
+def train_twin(files: list[Path], cfg, progress: bool = True, **validation) -> tuple[SCTNTwin, dict]:
     """Train a new twin exactly as sctn.training.snn.train trains SCTN (same segments, samples, loss, optimiser, budget);
-    cfg is a sctn.training.snn.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins")."""
+    cfg is a sctn.training.snn.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins");
+    `validation` (val_files, val_score) as sctn.training.snn.train takes them."""
     from sctn.training.snn import train
 
     if cfg.ops_penalty > 0:
         raise ValueError("the ANN twin has no spikes to penalise: ops_penalty must be 0")
     if not isinstance(cfg.network, TwinConfig):
         cfg = cfg.model_copy(update={"network": TwinConfig(**cfg.network.model_dump())})
-    return train(files, cfg, progress=progress, build=SCTNTwin)
+    return train(files, cfg, progress=progress, build=SCTNTwin, **validation)
 
 
 def default_twin_path() -> Path:

@@ -25,6 +25,10 @@ class LegacyLayoutWarning(UserWarning):
     """A checkpoint whose network is not the paper preset (biases, tail steps or other steps)."""
 
 
+class TrainingRuleWarning(UserWarning):
+    """A checkpoint trained another way than today's preset: error-time rule or initialisation (sctn.training.snn)."""
+
+
 def layout_note(cfg: NetworkConfig) -> str | None:
     """What makes a network config differ from the paper preset's layout, or None if it is the preset's."""
     ways = []
@@ -220,6 +224,11 @@ def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
     note = layout_note(cfg)
     if note:
         warnings.warn(f"{p}: {note}", LegacyLayoutWarning, stacklevel=2)
+    from sctn.training.snn import training_note  # the training's settings live there
+
+    rule = training_note(blob.get("meta", {}).get("train_config"))
+    if rule:
+        warnings.warn(f"{p}: {rule}", TrainingRuleWarning, stacklevel=2)
     model = SCTN(cfg)
     model.load_state_dict(blob["state_dict"])
     model.eval()

@@ -5,6 +5,13 @@ conv1, each layer's spikes into the next; the output layer's spikes drive nothin
 fan-out per input pixel is (out channels) x (number of output positions whose kernel covers the
 pixel); a fully connected layer's is its output width. ANN MACs are counted on the layers that run
 (count_macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
+
+Neuron-state updates are counted apart (the paper counts synaptic operations only): an SNN updates
+every neuron's C-LIF state at every step (neurons._clif_steps: 3 multiplies and 4 adds, counted for
+every neuron, as a clock-driven implementation runs them); an ANN applies one activation per unit and
+evaluation (a ReLU: one comparison, costed as an add). `tracker_energy` states one tracker's figures
+per evaluation (one candidate box, or one Siamese frame) and per tracked segment (x its evaluations
+per segment: 256 candidates for SCTN and its twin, 1 for a Siamese tracker), from one set of counts.
 """
 
 from __future__ import annotations
@@ -17,6 +24,10 @@ from sctn.network import SCTN
 
 E_AC_PJ = 0.9
 E_MAC_PJ = 4.6
+E_MUL_PJ = E_MAC_PJ - E_AC_PJ  # a 32-bit float multiply: a MAC less its add (3.7 pJ)
+CLIF_MULS, CLIF_ADDS = 3, 4  # one C-LIF update: V0 I, d_m (.), d_s (.); u + x, - theta S, w + x, u - w
+E_CLIF_UPDATE_PJ = CLIF_MULS * E_MUL_PJ + CLIF_ADDS * E_AC_PJ
+E_ACTIVATION_PJ = E_AC_PJ  # a ReLU: one comparison, costed as an add
 LAYER_NAMES = ("input", "conv1", "conv2", "conv3", "fc1", "fc2", "output")
 
 
@@ -112,8 +123,12 @@ def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, b
     ops["output"] = 0.0
     ac = sum(ops.values())
     macs = rec["mix_macs"]
+    # C-LIF updates that run: every conv neuron over the region, the fc neurons per row they ran on, the outputs
+    states = sum(float(rec[name].numel()) for name in ("conv1", "conv2", "conv3", "fc1", "fc2"))
+    states += float(rec["fc2"].shape[0] * rec["fc2"].shape[1] * 2)
     return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]), "ac_ops": ac,
-            "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ}
+            "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ,
+            "state_updates": states}
 
 
 def energy_pj(ac_ops: float = 0.0, mac_ops: float = 0.0, e_ac: float = E_AC_PJ, e_mac: float = E_MAC_PJ) -> dict:
@@ -137,3 +152,43 @@ def count_macs(fn, *inputs: torch.Tensor) -> dict:
     if rest > 0:  # functional calls outside any module (SiamFC's cross-correlation)
         by_layer["functional"] = rest
     return {"mac_ops": counter.get_total_flops() / 2, "by_layer": by_layer}
+
+
+def snn_state_updates(cfg) -> float:
+    """C-LIF state updates of one evaluation of an SCTN of config cfg: every neuron (conv maps, fc layers, the two
+    outputs) at every step, tail steps included."""
+    sizes = cfg.conv_sizes()
+    neurons = sum(c * n * n for c, n in zip(cfg.channels, sizes)) + sum(cfg.fc) + 2
+    return float(neurons * (cfg.steps + cfg.tail_steps))
+
+
+def count_activations(fn, *inputs: torch.Tensor) -> float:
+    """Activation-function outputs (ReLU elements) of one call fn(*inputs): an ANN's per-unit state updates."""
+    from torch.overrides import TorchFunctionMode
+
+    relus = {F.relu, torch.relu, torch.relu_, torch.Tensor.relu, torch.Tensor.relu_}
+    count = [0]
+
+    class Counter(TorchFunctionMode):
+        def __torch_function__(self, func, types, args=(), kwargs=None):
+            out = func(*args, **(kwargs or {}))
+            if func in relus and isinstance(out, torch.Tensor):
+                count[0] += out.numel()
+            return out
+
+    with Counter(), torch.no_grad():
+        fn(*inputs)
+    return float(count[0])
+
+
+def tracker_energy(evaluations_per_segment: float, ac_ops: float = 0.0, mac_ops: float = 0.0,
+                   state_updates: float | None = None, state_update_pj: float = E_CLIF_UPDATE_PJ) -> dict:
+    """One tracker's operations and energy per evaluation (arguments: one candidate's or frame's counts) and per
+    tracked segment (x evaluations_per_segment): {per_evaluation: {...}, per_segment: {...}}, each with ac_ops,
+    mac_ops, energy_pj (synaptic: the paper's measure), state_updates and state_energy_pj (None if unknown)."""
+    def figures(k: float) -> dict:
+        states = None if state_updates is None else state_updates * k
+        return {"ac_ops": ac_ops * k, "mac_ops": mac_ops * k, "energy_pj": (ac_ops * E_AC_PJ + mac_ops * E_MAC_PJ) * k,
+                "state_updates": states, "state_energy_pj": None if states is None else states * state_update_pj}
+    return {"evaluations_per_segment": evaluations_per_segment, "per_evaluation": figures(1.0),
+            "per_segment": figures(float(evaluations_per_segment))}

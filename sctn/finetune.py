@@ -5,20 +5,51 @@ Kept apart from sctn/training/snn.py so that inference (sctn/tracker.py) does no
 
 from __future__ import annotations
 
+from typing import get_args
+
 import numpy as np
 import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_search
-from sctn.loss import voltage_loss
+from sctn.loss import error_voltages, voltage_loss
 from sctn.network import SCTN
+from sctn.params import FinetuneLayers
 from sctn.samples import FINETUNE, labelled_samples
+
+BALANCED = (32, 96)  # positives and negatives per balanced mini-batch (MDNet's fine-tuning batches)
+
+
+def tuned_parameters(model: SCTN, layers: str = "all") -> list[torch.nn.Parameter]:
+    """The parameters fine-tuning updates: every one ("all"), or the fully connected layers' weights and their
+    neurons' time constants ("fc"; MDNet tunes its fully connected layers only)."""
+    if layers == "all":
+        return list(model.parameters())
+    if layers == "fc":
+        return list(model.fcs.parameters()) + [q for n in model.neurons[len(model.convs):] for q in n.parameters()]
+    raise ValueError(f"fine-tuning layers must be one of {', '.join(get_args(FinetuneLayers))}, got {layers!r}")
+
+
+def minibatch(rng: np.random.Generator, candidates: np.ndarray, positive: np.ndarray, batch: int,
+              balanced: bool) -> np.ndarray:
+    """Indices into `candidates` (sample indices) of one mini-batch: `batch` drawn without replacement, or with
+    `balanced` BALANCED[0] positives and BALANCED[1] negatives (fewer where fewer exist)."""
+    if not balanced:
+        return rng.choice(candidates, min(batch, len(candidates)), replace=False)
+    pos, neg = candidates[positive[candidates]], candidates[~positive[candidates]]
+    return np.concatenate([rng.choice(pos, min(BALANCED[0], len(pos)), replace=False),
+                           rng.choice(neg, min(BALANCED[1], len(neg)), replace=False)])
 
 
 def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image_wh: tuple[int, int],
              rng: np.random.Generator, iters: int = 10, batch: int = 128, lr: float = 1e-3, kind: str = "exp",
-             specs=FINETUNE, search_iters: int = 0, crop: str = "bilinear") -> dict:
+             specs=FINETUNE, search_iters: int = 0, crop: str = "bilinear", error_time: str = "stca",
+             balanced: bool = False, layers: str = "all") -> dict:
     """Fine-tune in place on one segment: 500 gaussian positives, 1000 uniform + 1000 whole-image negatives.
+
+    Each mini-batch is `batch` samples drawn at random (about a fifth positive), or with `balanced` 32
+    positives and 96 negatives; `layers` "fc" tunes the fully connected layers only (tuned_parameters);
+    each sample's error sits at the step `error_time` picks (sctn.loss.error_steps, random steps from rng).
 
     search_iters more mini-batches then run through the fast mode (SCTN.forward_search with `crop`)
     on the samples within two box sizes of the box (whole-image negatives would make the region the
@@ -29,19 +60,22 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
     offset = np.abs(boxes[:, :2] + boxes[:, 2:] / 2 - box[:2] - box[2:] / 2).max(axis=1)
     near = np.flatnonzero(offset <= 2 * box[2:].max())  # the positives and the uniform negatives
     cfg = model.cfg
-    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    opt = torch.optim.Adam(tuned_parameters(model, layers), lr=lr)
+    everything = np.arange(len(boxes))
     model.train()
     losses = []
     for i in range(iters + search_iters):
         if i < iters:
-            pick = rng.choice(len(boxes), min(batch, len(boxes)), replace=False)
+            pick = minibatch(rng, everything, pos, batch, balanced)
             x = encode_boxes(events, t0_us, boxes[pick], cfg)
-            vmax = model(x).max(dim=1).values
+            volts = model(x)
         else:
-            pick = rng.choice(near, min(batch, len(near)), replace=False)
+            pick = minibatch(rng, near, pos, batch, balanced)
             region, origins, rboxes = encode_search(events, t0_us, boxes[pick], box, cfg)
-            vmax = model.forward_search(region, origins, rboxes, crop=crop).max(dim=1).values
-        loss = voltage_loss(vmax, torch.from_numpy(iou[pick]), torch.from_numpy(pos[pick]), kind)
+            volts = model.forward_search(region, origins, rboxes, crop=crop)
+        positive = torch.from_numpy(pos[pick])
+        loss = voltage_loss(error_voltages(volts, positive, error_time, rng), torch.from_numpy(iou[pick]), positive,
+                            kind)
         opt.zero_grad()
         loss.backward()
         opt.step()

@@ -9,6 +9,15 @@ theta + R_s = theta - 0.3 ("fires wrongly") contributes V_max - R_s - theta. The
 error of the target neuron, averaged over the samples of a batch (STCA back-propagates the residual
 error itself: the output's gradient is the error's sign, scaled by 1 / batch).
 
+Where in time the error sits (`error_steps`, STCA's rule, Gu et al. 2019, the preset's "stca"): a
+sample that should fire and did not (V below theta at every step) is charged at the step of the highest
+local maximum of its V (V rises into that step from the previous one, resting 0 before the window, and
+does not rise after it; the last step counts when V rises into it); with no such peak, at a random step
+drawn from the training generator. A sample that fired is charged at its firing step of largest V, and
+one that should not fire at its step of largest V. The named ablation "max" charges every sample at the
+maximum of V over all steps, which for a neuron whose input is net negative is a quiet step where V
+rests at 0 and nothing arrived: no gradient reaches any weight though the error is not zero.
+
 Two named deviations, off by default, each with its ablation row (docs/sctn.md): `squared` squares
 each sample's error before averaging (the gradient then grows with the residual), and `background`
 adds the mirrored term of the background neuron (it should reach theta + 0.3 on negatives and stay
@@ -19,9 +28,11 @@ from __future__ import annotations
 
 from typing import Literal, get_args
 
+import numpy as np
 import torch
 
 from sctn.neurons import THETA
+from sctn.params import ERROR_TIMES, ErrorTime  # noqa: F401  (ErrorTime: the setting's type, imported from here)
 
 NEGATIVE_FEEDBACK = -0.3
 LossKind = Literal["exp", "linear", "basic"]
@@ -60,3 +71,51 @@ def voltage_loss(vmax: torch.Tensor, iou: torch.Tensor, positive: torch.Tensor, 
         error = error + (e_bg ** 2 if squared else e_bg)
     return error.mean()
 
+
+
+def peak_steps(volts: torch.Tensor, theta: float = THETA) -> torch.Tensor:
+    """Per sample and neuron of volts (N, T, K): the step of the highest local maximum of V below theta, or -1
+    where V has none. A local maximum rises into its step (from resting 0 before the first) and does not rise
+    into the next (the last step counts when V rises into it)."""
+    v = volts.detach()
+    before = torch.cat([torch.zeros_like(v[:, :1]), v[:, :-1]], dim=1)
+    after = torch.cat([v[:, 1:], torch.full_like(v[:, :1], -torch.inf)], dim=1)
+    peak = (v > before) & (v >= after) & (v < theta)
+    score = torch.where(peak, v, torch.full_like(v, -torch.inf))
+    best = score.argmax(dim=1)
+    return torch.where(peak.any(dim=1), best, torch.full_like(best, -1))
+
+
+def error_steps(volts: torch.Tensor, should_fire: torch.Tensor, rule: str = "stca",
+                rng: np.random.Generator | None = None, theta: float = THETA) -> torch.Tensor:
+    """The step (N, K) where each sample's error sits, for voltages (N, T, K) and should_fire (N, K).
+
+    "max": the step of largest V. "stca": that step too, except for a sample that should fire and never
+    reached theta: the step of its highest local maximum of V (peak_steps), else a step drawn from `rng`
+    (one draw per sample and neuron on every call, so the stream does not depend on the voltages).
+    """
+    if rule not in ERROR_TIMES:
+        raise ValueError(f"unknown error time {rule!r} ({', '.join(ERROR_TIMES)})")
+    v = volts.detach()
+    top = v.argmax(dim=1)
+    if rule == "max":
+        return top
+    if rng is None:
+        raise ValueError("the stca error time needs a random generator for its steps without a peak")
+    n, t, k = v.shape
+    drawn = torch.from_numpy(rng.integers(0, t, size=(n, k))).to(top.dtype)
+    peak = peak_steps(v, theta)
+    missed = should_fire & (v.amax(dim=1) < theta)
+    return torch.where(missed, torch.where(peak >= 0, peak, drawn), top)
+
+
+def error_voltages(volts: torch.Tensor, positive: torch.Tensor, rule: str = "stca",
+                   rng: np.random.Generator | None = None, theta: float = THETA) -> torch.Tensor:
+    """V (N, 2) of the background and target neurons at their error steps (error_steps) for voltages (N, T, 2):
+    what voltage_loss takes in place of V_max. The target should fire on positives, the background on
+    negatives. "max" returns V_max itself (volts.max over steps)."""
+    if rule == "max":
+        return volts.max(dim=1).values
+    should = torch.stack([~positive, positive], dim=1)
+    steps = error_steps(volts, should, rule, rng, theta)
+    return volts.gather(1, steps[:, None, :])[:, 0]

@@ -17,10 +17,13 @@ Default widths (chosen for speed on a CPU): conv 2->8 (4x4, stride 4) -> 16 (3x3
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 from pydantic import BaseModel, ConfigDict
 from torch import nn
+from torch.nn import functional as F
 
 from sctn.neurons import ALPHA_M, ALPHA_S, CLIF
 from sctn.params import CROPS
@@ -106,6 +109,37 @@ class SCTN(nn.Module):
             else:
                 factors.append(1.0)
         return factors
+
+    @torch.no_grad()
+    def fluctuation_init(self, x: torch.Tensor, xi: float = 2.0) -> list[float]:
+        """Fluctuation-driven init (Rossbroich, Gygax and Zenke 2022): each layer's weights, first to last, drawn
+        from N(0, sigma_w^2) so that on x the membrane potential's standard deviation is theta / xi.
+
+        For inputs spiking at rate nu per step, a neuron of fan-in n with zero-mean weights has Var V = n nu
+        sigma_w^2 eps2, eps2 = sum over k = 1..T of the squared PSP kernel V0 (d_m^k - d_s^k) (peak 1), so
+        sigma_w = theta / (xi sqrt(n nu eps2)). nu is the rate seen by the neurons that receive any input (the
+        inputs under their kernel window; all of a fully connected layer's), measured on x through the layers
+        already set. A layer whose input never spikes keeps its weights (nan in the list). Returns the
+        sigma_w applied per layer."""
+        stds = []
+        layers = list(self.convs) + list(self.fcs)
+        for k, layer in enumerate(layers):
+            spikes = x.transpose(0, 1) if k == 0 else self._run(x, record=False, capture=k - 1)[0]
+            rate = window_rate(layer, spikes)
+            steps = spikes.shape[0]
+            d_m, d_s, v0 = self.neurons[k]._constants((-1,))
+            ks = torch.arange(1, steps + 1, dtype=d_m.dtype)[:, None]
+            eps2 = float(((v0 * (d_m ** ks - d_s ** ks)) ** 2).sum(dim=0).mean())
+            fan_in = layer.weight[0].numel()
+            if rate > 0:
+                std = self.neurons[k].theta / (xi * math.sqrt(fan_in * rate * eps2))
+                nn.init.normal_(layer.weight, 0.0, std)
+                if layer.bias is not None:
+                    nn.init.zeros_(layer.bias)
+                stds.append(std)
+            else:
+                stds.append(float("nan"))
+        return stds
 
     def _run(self, x: torch.Tensor, record: bool, capture: int | None = None):
         b, t = x.shape[:2]
@@ -289,6 +323,22 @@ class SCTN(nn.Module):
     def forward_record(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Voltages and every layer's spikes (input first, each (T, B, ...)), for energy accounting."""
         return self._run(x, record=True)
+
+
+def window_rate(layer: nn.Module, spikes: torch.Tensor) -> float:
+    """Spikes per input and step that a layer's neurons receive, over the neurons (and samples) whose input
+    window holds any spike: spikes (T, B, C, H, W) into a convolution (its kernel windows) or (T, B, ...) into
+    a fully connected layer (all its inputs); 0 if no window holds one."""
+    counts = spikes.sum(dim=0)  # (B, ...) spikes per input over the steps
+    if isinstance(layer, nn.Conv2d):
+        ones = counts.new_ones((1, 1) + tuple(layer.kernel_size))
+        windows = F.conv2d(counts.sum(dim=1, keepdim=True), ones, stride=layer.stride).flatten()
+    else:
+        windows = counts.flatten(1).sum(dim=1)
+    active = windows[windows > 0]
+    if not active.numel():
+        return 0.0
+    return float(active.mean()) / (layer.weight[0].numel() * spikes.shape[0])
 
 
 def check_crop(crop: str) -> None:

@@ -11,6 +11,9 @@ from sctn.samples import TRACK
 
 Crop = Literal["bilinear", "nearest"]  # the fast mode's crop of conv3's map (SCTN.forward_search)
 CROPS: tuple[str, ...] = get_args(Crop)
+ErrorTime = Literal["stca", "max"]  # where a sample's error sits in time: STCA's rule, or V's maximum (sctn/loss.py)
+ERROR_TIMES: tuple[str, ...] = get_args(ErrorTime)
+FinetuneLayers = Literal["all", "fc"]  # what fine-tuning updates (sctn/finetune.py)
 
 
 class SearchParams(Strict):
@@ -33,3 +36,7 @@ class SCTNParams(SearchParams):
     fast: Bool = False  # strict: the text "False" must not mean true
     crop: Crop = "bilinear"
     finetune_search_iters: Int = Field(10, ge=0, description="fast mode: fine-tuning mini-batches run through it")
+    error_time: ErrorTime = Field("stca", description="fine-tuning: the step each sample's error sits at")
+    finetune_balanced: Bool = Field(False, description="fine-tuning mini-batches of 32 positives and 96 negatives")
+    finetune_layers: FinetuneLayers = Field("all", description="fine-tune every layer, or the fully connected ones")
+    finetune_on_reinit: Bool = Field(False, description="fine-tune again at each re-initialisation after a failure")

@@ -18,7 +18,9 @@ target candidates generated for the same location are fixed"), whatever happened
 happens at the first initialisation of a sequence only, as in Algorithm 1 (steps 1-2, once per test
 sequence): a re-initialisation after a failure (the protocol's, not the paper's tracker) resets the box
 and the translation range and keeps the fine-tuned network, so a failure costs no extra training and
-no ground truth beyond the re-initialisation box is used for learning.
+no ground truth beyond the re-initialisation box is used for learning. `finetune_on_reinit` is the named
+alternative: each re-initialisation fine-tunes the network further on its segment, with the same budget.
+Fine-tuning's own settings (`error_time`, `finetune_balanced`, `finetune_layers`) are sctn.finetune's.
 """
 
 from __future__ import annotations
@@ -60,6 +62,9 @@ class SCTNTracker:
         self.model: SCTN = model
         self.seed, self.fast, self.finetune_iters, self.crop = p.seed, p.fast, p.finetune_iters, p.crop
         self.finetune_search_iters = p.finetune_search_iters if p.fast else 0
+        self.finetune_options = {"error_time": p.error_time, "balanced": p.finetune_balanced,
+                                 "layers": p.finetune_layers}
+        self.finetune_on_reinit = p.finetune_on_reinit
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = (p.n_candidates, p.trans, p.trans_growth,
                                                                             p.trans_max)
         self.vstar_threshold, self.top_k = p.vstar_threshold, p.top_k
@@ -72,19 +77,21 @@ class SCTNTracker:
         self.last_search: tuple[np.ndarray, np.ndarray] | None = None
 
     def init(self, events: EventBatch, t0_us: int, box_xywh: np.ndarray, width: int, height: int) -> None:
-        """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time."""
+        """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time (and at
+        every later initialisation with finetune_on_reinit)."""
         self.box = np.asarray(box_xywh, np.float64).copy()
         self.image_wh = (int(width), int(height))
         self.trans = self.trans0
-        if not self.tuned:
+        first = not self.tuned
+        if first:
             self.rng = np.random.default_rng(self.seed)
             self.model = copy.deepcopy(self.base)
-            if self.finetune_iters > 0:
-                torch.manual_seed(self.seed)
-                self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
-                                           iters=self.finetune_iters, search_iters=self.finetune_search_iters,
-                                           crop=self.crop)
-            self.tuned = True
+            torch.manual_seed(self.seed)
+        if self.finetune_iters > 0 and (first or self.finetune_on_reinit):
+            self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
+                                       iters=self.finetune_iters, search_iters=self.finetune_search_iters,
+                                       crop=self.crop, **self.finetune_options)
+        self.tuned = True
 
     def candidates(self) -> np.ndarray:
         """Gaussian candidates (N, 4) around the last box with the current translation range, fixed per location."""

@@ -2,7 +2,8 @@
 
 Everything is written as temp files renamed into place together, then the manifest (run.json: the
 run's id and each file's SHA-256, dvsot.runtime.outputs), so an interrupted run never leaves a table
-half-written, nor new tables beside old pictures.
+half-written, nor new tables beside old pictures. The directory holds one run's files: the files of the
+previous run there that this one does not write go in the same commit.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from benchmarks.evaluation.protocol import SequenceResult
 MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.runtime.outputs)
 VIDEO_SEGMENTS = 300  # frames of a video preview, one per segment
 OPE_FILES = ("ope.json", "ope.md", "success_plot.png", "precision_plot.png")
+ATTRIBUTE_FILES = ("attributes.md", "attributes.json", "attributes.png")  # benchmarks.evaluation.attributes.write_attributes
 
 
 def video_name(sequence: str) -> str:
@@ -30,7 +32,7 @@ def report_files(protocol: str = "ar", plots: bool = False, videos: Sequence[str
     """{file name in the report directory: what asks for it ('tables', 'manifest', 'plots', 'video', 'energy')}."""
     from benchmarks.analysis.tables import TABLE_FILES
 
-    names = {n: "tables" for n in (OPE_FILES if protocol == "ope" else TABLE_FILES.values())}
+    names = {n: "tables" for n in (*(OPE_FILES if protocol == "ope" else TABLE_FILES.values()), *ATTRIBUTE_FILES)}
     names[MANIFEST] = "manifest"
     if plots:
         names["iou_over_time.png"] = "plots"
@@ -53,7 +55,8 @@ def write_report(out_dir: str | Path, summary, results: list[SequenceResult], *,
     from dvsot.runtime.outputs import run_outputs
 
     out = Path(out_dir)
-    with run_outputs(out / MANIFEST) as run:  # all files of the run renamed into place together, or none
+    # all files of the run renamed into place together, or none; the previous run's other files removed with them
+    with run_outputs(out / MANIFEST, whole=True) as run:
         paths = _write_all(out, summary, results, protocol, plots, dict(videos or {}), energy)
     paths["manifest"] = run.manifest
     return paths
@@ -70,6 +73,9 @@ def _write_all(out: Path, summary, results: list[SequenceResult], protocol: str,
         paths: dict[str, Path | str] = {f"ope:{x.name}": x for x in write_ope(summary, out)}
     else:
         paths = dict(write_tables(summary, out))
+    from benchmarks.evaluation.attributes import write_attributes
+
+    paths.update({f"attributes:{x.name}": x for x in write_attributes(results, out, protocol)})
     files = write_sequence_files(results, out, vot=protocol != "ope")
     if files:
         paths["per-sequence"] = f"{out}/<tracker>/ ({len(files)} files)"

@@ -73,6 +73,25 @@ def result_paths(out_dir: Path, tracker: str, sequence: str, vot: bool) -> dict[
     return paths
 
 
+def per_sequence_files(trackers: list[str], sequences: dict[str, str | Path], protocol: str = "ar") -> list[Path]:
+    """Every per-sequence file a run of these trackers on these sequences may write (relative to its directory);
+    UserError if two runs would write one file (names that differ but are made safe to the same file name)."""
+    from dvsot.errors import UserError
+
+    owner: dict[Path, tuple[str, str]] = {}
+    for t in trackers:
+        for seq, path in sequences.items():
+            for p in result_paths(Path(), t, seq, protocol != "ope").values():
+                if p in owner and owner[p] != (t, seq):
+                    other_t, other_seq = owner[p]
+                    what = (f"sequence '{seq}' ({path}) and '{other_seq}' ({sequences[other_seq]})" if t == other_t
+                            else f"trackers '{t}' and '{other_t}'")
+                    raise UserError(f"{what} would write the same result file {p}; rename one")
+                owner[p] = (t, seq)
+        owner[Path(file_stem(t)) / "timing.csv"] = (t, "")
+    return list(owner)
+
+
 def write_sequence_files(results: list[SequenceResult], out_dir: str | Path, vot: bool = True) -> list[Path]:
     """Write every finished run's per-sequence files and each tracker's timing.csv (each file atomically)."""
     out_dir = Path(out_dir)
@@ -86,6 +105,8 @@ def write_sequence_files(results: list[SequenceResult], out_dir: str | Path, vot
         texts.update({"vot": vot_text(r)} if vot else {"got10k": texts["otb"], "got10k_time": texts["time"]})
         # a sequence named "times" has one time file in both layouts, with the same text
         for path, kind in {path: kind for kind, path in paths.items()}.items():
+            if path in written:  # two sequences whose names are made safe to one file name
+                raise ValueError(f"{path}: written twice in one run ({r.tracker} on {r.sequence}); names must differ")
             path.parent.mkdir(parents=True, exist_ok=True)
             written.append(write_text_atomic(path, texts[kind]))
         asked = len(r.init_segments) + r.tracked_segments

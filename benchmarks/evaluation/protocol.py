@@ -59,6 +59,26 @@ class SequenceResult:
         return self.tracked_segments / self.tracker_seconds if self.tracker_seconds > 0 else float("nan")
 
 
+def nothing_to_score(path, max_segments: int | None = None, reinitialise: bool = True,
+                     min_box_px: float = MIN_BOX_PX) -> str | None:
+    """Why the protocol would score no segment of the dataset file at path (its first max_segments), or None.
+
+    A segment is scored when it has a usable box (rules 2 and 5) and follows the segment the tracker was
+    initialised on; with re-initialisation, an unusable scored segment in between starts over (rule 2).
+    """
+    with Dataset(path) as ds:
+        n = ds.num_segments if max_segments is None else min(max_segments, ds.num_segments)
+        gt, scored = ds.segment_boxes()[:n], ds.segment_scored()[:n]
+    with np.errstate(invalid="ignore"):
+        usable = scored & ~np.isnan(gt).any(axis=1) & (gt[:, 2] >= min_box_px) & (gt[:, 3] >= min_box_px)
+    u = usable[scored]
+    if (u[:-1] & u[1:]).any() if reinitialise else u.sum() >= 2:
+        return None
+    return (f"{path}: no segment of {n} can be scored: the protocol needs a segment with a ground-truth box at "
+            f"least {min_box_px:g} px wide and high to initialise on, and one after it "
+            f"({int(usable.sum())} such segments{', none two in a row' if reinitialise and usable.any() else ''})")
+
+
 def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = None,
                  min_box_px: float = MIN_BOX_PX, max_segments: int | None = None,
                  reinitialise: bool = True) -> SequenceResult:

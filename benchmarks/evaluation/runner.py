@@ -33,6 +33,10 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
         if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
             sys.modules["torch"].set_num_threads(1)
         result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
+        if result.error is None:
+            from benchmarks.evaluation.attributes import add_attributes
+
+            add_attributes(result, ds)
         if protocol == "ope":
             from benchmarks.evaluation.ope import add_centre_errors
 
@@ -63,20 +67,18 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
               jobs: int = 1, max_segments: int | None = None, protocol: str = "ar",
               tracker_modules: Sequence[str] = (), progress: bool = False,
               scheduler: str | None = None) -> list[SequenceResult]:
-    """Every tracker on every file (tracker by tracker), in `jobs` worker processes; options: {tracker: {key: value}}.
+    """Every tracker on every file (tracker by tracker), here (jobs 1) or in `jobs` worker processes (local:N);
+    options: {tracker: {key: value}}.
 
-    scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) instead (dvsot.pipeline.scene_runner;
+    scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) there (dvsot.runtime.dask_tasks;
     the files must be at the same paths on the workers). Unknown trackers, jobs < 1, max_segments < 1, an
     unknown protocol or a malformed scheduler raise UserError before anything runs; a tracker that crashes
     on a sequence gives that result an `error` instead of raising.
     """
-    from concurrent.futures import as_completed
-
     from tqdm import tqdm
 
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
-    from dvsot.runtime.worker_pool import WorkerPool, result
 
     if jobs < 1:
         raise UserError(f"jobs must be >= 1, got {jobs}")
@@ -98,24 +100,15 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     tasks = [(t, f) for t in names for f in paths]
     results: list = [None] * len(tasks)
     bar = tqdm(total=len(tasks), unit="run", desc="bench", disable=not progress)
-    if scheduler:  # one Dask task per run, on a LocalCluster or a running cluster (dvsot.pipeline.scene_runner)
-        from dvsot.pipeline.scene_runner import map_tasks
+    if scheduler or jobs > 1:  # one Dask task per run: --jobs N is local:N (dvsot.runtime.dask_tasks)
+        from dvsot.runtime.dask_tasks import map_tasks
 
         calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol) for t, f in tasks]
-        results = map_tasks(scheduler, run_one, calls, lambda k, r: bar.update(1))
-    elif jobs == 1:
+        results = map_tasks(scheduler or f"local:{jobs}", run_one, calls, lambda k, r: bar.update(1))
+    else:
         for k, (t, f) in enumerate(tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
             results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol)
             bar.update(1)
-    else:
-        # spawn: each worker starts clean (torch and OpenCV threads do not survive fork well); workers die with
-        # this process, and on any exception here they are stopped at once (dvsot.runtime.worker_pool)
-        with WorkerPool(jobs) as pool:
-            futures = {pool.submit(run_one, t, f, list(tracker_modules), max_segments, options.get(t), protocol): k
-                       for k, (t, f) in enumerate(tasks)}
-            for fut in as_completed(futures):
-                results[futures[fut]] = result(fut)
-                bar.update(1)
     bar.close()
     return results

@@ -11,6 +11,8 @@ then the table prints mean and standard deviation over seeds.
     python -m benchmarks.experiments.ablation --rows paper loss_linear loss_basic --seeds 10 ...  # Fig. 7A
     python -m benchmarks.experiments.ablation --ci --rows paper loss_linear --seeds 2   # the two tiny CI scenes, quick
     python -m benchmarks.experiments.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
+    python -m benchmarks.experiments.ablation --train data/dvsot21 --val-data data/val --test data/val --test-split any \
+        --rows paper error_time_max calibration init_fluctuation --seeds 5 --out runs/choices   # chosen on validation
 
 With --scheduler local:N | tcp://HOST:PORT each (row, seed) is one task on Dask (dvsot.runtime.dask_tasks.run_tasks, as
 `dvsot generate` and `dvsot bench` use it); the workers need the data files and --out at the same paths. A
@@ -39,7 +41,12 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "fast_nearest": ({}, {}, {"fast": True, "crop": "nearest", "finetune_search_iters": 0}),
     "fast_bilinear_search_tuned": ({}, {}, {"fast": True, "crop": "bilinear", "finetune_search_iters": 10}),
     "ops_penalty": ({"ops_penalty": 0.05}, {}, {}),
-    "calibration": ({"calibrate": True}, {}, {}),
+    "calibration": ({"init": "calibrate"}, {}, {}),
+    "init_fluctuation": ({"init": "fluctuation"}, {}, {}),
+    "error_time_max": ({"error_time": "max"}, {}, {"error_time": "max"}),
+    "finetune_balanced": ({}, {}, {"finetune_balanced": True}),
+    "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
+    "finetune_on_reinit": ({}, {}, {"finetune_on_reinit": True}),
     "squared_error": ({"squared_error": True}, {}, {}),
     "background_term": ({"background_term": True}, {}, {}),
     "tail_steps": ({}, {"tail_steps": 2}, {}),
@@ -48,6 +55,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "loss_basic": ({"loss": "basic"}, {}, {}),
 }
 METRICS = ("A", "R", "ARscore")
+ENERGY_SEGMENTS = 64  # test segments sampled (seed 0, as the energy table) for each run's energy figures
 
 
 def training_key(row: str) -> str:
@@ -60,7 +68,7 @@ def training_key(row: str) -> str:
 
 
 def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path], budget: dict, workdir: Path,
-            n_candidates: int, max_segments: int | None) -> dict:
+            n_candidates: int, max_segments: int | None, val_files: list[Path] | None = None) -> dict:
     """Train (or reuse) the network of one (row, seed) and track the test files; {row, seed, A, R, ARscore, ...}."""
     import torch
 
@@ -76,29 +84,41 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
     torch.set_num_threads(1)
     train_kw, net_kw, track_kw = ROWS[row]
     ckpt = workdir / f"{training_key(row)}_seed{seed}.pt"
-    if ckpt.is_file():
+    ckpt_meta = ckpt.is_file()
+    if ckpt_meta:
         model, meta = load_checkpoint(ckpt)
         minutes, silent = meta.get("history", {}).get("minutes"), meta.get("history", {}).get("silent")
     else:
-        cfg = TrainConfig(seed=seed, network=NetworkConfig(**net_kw), val_every=10**9, val_segments=2,
-                          **budget, **train_kw)
-        model, history = train(train_files, cfg, progress=False)
+        cfg = TrainConfig(seed=seed, network=NetworkConfig(**net_kw), val_every=10**9, **budget, **train_kw)
+        model, history = train(train_files, cfg, progress=False, val_files=val_files)
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
         minutes, silent = history["minutes"], history.get("silent")
-    ious, energy = [], []
+    ious, tuned = [], {}
     for f in test_files:
-        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw),
-                                      energy_every=25)
+        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw))
         with Dataset(f) as ds:
             res = run_sequence(bench, ds, "sctn", max_segments=max_segments)
         ious.append(res.iou)
-        e = bench.energy_per_segment()
-        if e:
-            energy.append(e["ac_ops"])
+        tuned[f] = bench.tracker.model  # fine-tuned on the file's first segment (and re-initialisations, if so)
     s = pooled(ious)
+    energy = run_energy(tuned, test_files, n_candidates, track_kw)
+    history = meta.get("history", {}) if ckpt_meta else history
     return {"row": row, "seed": seed, "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore,
             "segments": s.segments, "train_minutes": minutes, "silent": silent,
-            "ac_ops_per_segment": float(np.mean(energy)) if energy else None}
+            "target_vmax_pos": history.get("target_vmax_pos"), "nearly_silent": history.get("nearly_silent"),
+            "ac_ops_per_evaluation": energy["per_evaluation"]["ac_ops"],
+            "ac_ops_per_segment": energy["per_segment"]["ac_ops"],
+            "state_updates_per_evaluation": energy["per_evaluation"]["state_updates"]}
+
+
+def run_energy(tuned: dict, test_files: list[Path], n_candidates: int, track_kw: dict) -> dict:
+    """A run's energy figures (benchmarks.analysis.energy_table.sctn_energy, the energy table's function): each test file's
+    fine-tuned network on the ENERGY_SEGMENTS segments the energy table samples, in the mode the row tracks in."""
+    from benchmarks.analysis.energy_table import _sample_by_file, sctn_energy
+
+    groups = [(tuned[f], segs) for f, segs in _sample_by_file(test_files, ENERGY_SEGMENTS, 0)]
+    mode = f"fast {track_kw.get('crop', 'bilinear')}" if track_kw.get("fast") else "per candidate"
+    return sctn_energy(groups, n_candidates, 0, (mode,))["rows"][mode]
 
 
 def summarise(runs: list[dict]) -> dict:
@@ -106,9 +126,10 @@ def summarise(runs: list[dict]) -> dict:
     out: dict = {}
     for row in dict.fromkeys(r["row"] for r in runs):
         rs = [r for r in runs if r["row"] == row]
-        keys = METRICS + ("ac_ops_per_segment",)
+        keys = METRICS + ("ac_ops_per_segment", "ac_ops_per_evaluation", "target_vmax_pos")
         vals = {k: [r[k] for r in rs if r.get(k) is not None] for k in keys}
         out[row] = {"seeds": len(rs), "silent": sum(bool(r.get("silent")) for r in rs),
+                    "nearly_silent": sum(bool(r.get("nearly_silent")) for r in rs),
                     "mean": {k: float(np.mean(v)) if v else None for k, v in vals.items()},
                     "std": {k: float(np.std(v)) if v else None for k, v in vals.items()}}
     return out
@@ -116,12 +137,13 @@ def summarise(runs: list[dict]) -> dict:
 
 def format_table(summary: dict) -> str:
     """The ablation as a markdown table: mean +- std over seeds per row."""
-    lines = ["| row | A | R | ARscore | AC per segment | seeds | silent |", "|---|---|---|---|---|---|---|"]
+    lines = ["| row | A | R | ARscore | AC per evaluation | AC per segment | seeds | silent | nearly silent |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for row, r in summary.items():
         cells = [f"{r['mean'][k]:.3f} ± {r['std'][k]:.3f}" for k in METRICS]
-        ops = r["mean"]["ac_ops_per_segment"]
-        lines.append(f"| {row} | " + " | ".join(cells) + (f" | {ops:.2e}" if ops is not None else " |")
-                     + f" | {r['seeds']} | {r.get('silent', 0)} |")
+        ops = [r["mean"].get(k) for k in ("ac_ops_per_evaluation", "ac_ops_per_segment")]
+        lines.append(f"| {row} | " + " | ".join(cells) + "".join(f" | {v:.2e}" if v is not None else " | " for v in ops)
+                     + f" | {r['seeds']} | {r.get('silent', 0)} | {r.get('nearly_silent', 0)} |")
     return "\n".join(lines)
 
 
@@ -185,7 +207,8 @@ def _run_dask(phases: list[list[tuple]], args: tuple, scheduler: str, retries: i
                     failed.append(runnable[k])
 
             run_tasks(client, run_one, [(row, s, *args) for row, s in runnable], retries,
-                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run")
+                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run",
+                      lease_dir=args[3])  # --out: the checkpoints
     return failed
 
 
@@ -197,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--train", nargs="+", help="training files / dirs / globs (split train)")
     p.add_argument("--test", nargs="+", help="test files / dirs / globs (split test)")
+    p.add_argument("--test-split", default="test", help="split of the --test files, or 'any' (validation scenes "
+                   "have none: --test data/val --test-split any makes the rows' choice on validation)")
     p.add_argument("--ci", action="store_true", help="use the two tiny CI scenes (rendered into a temp dir)")
     p.add_argument("--rows", nargs="+", default=["paper"], choices=sorted(ROWS))
     p.add_argument("--seeds", type=int, default=5, help="seeds 0 .. N-1")
@@ -206,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--segments-per-epoch", type=int, default=400)
     p.add_argument("--batch-segments", type=int, default=2)
     p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--val-data", nargs="+", default=None, help="validation files / dirs / globs (any split): the "
+                   "silence check (target V_max on positives) on them instead of every 10th training segment")
+    p.add_argument("--val-segments", type=int, default=2, help="validation segments of the silence check")
     p.add_argument("--candidates", type=int, default=TRACK.n)
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
     p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
@@ -222,7 +250,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     budget = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
-              "lr": a.lr, "max_minutes": a.minutes}
+              "lr": a.lr, "max_minutes": a.minutes, "val_segments": a.val_segments}
     log = out / "runs.jsonl"
     done = [r for r in read_log(log) if "error" not in r]  # failed attempts are run again
     have = {(r["row"], r["seed"]) for r in done}
@@ -240,8 +268,10 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 if not (a.train and a.test):
                     p.error("give --train and --test, or --ci")
-                train_files, test_files = find_datasets(a.train, "train"), find_datasets(a.test, "test")
-            args = (train_files, test_files, budget, out, a.candidates, a.max_segments)
+                train_files = find_datasets(a.train, "train")
+                test_files = find_datasets(a.test, None if a.test_split == "any" else a.test_split)
+            val_files = find_datasets(a.val_data, None) if a.val_data else None
+            args = (train_files, test_files, budget, out, a.candidates, a.max_segments, val_files)
 
             def on_result(r: dict) -> None:
                 _append(log, r)

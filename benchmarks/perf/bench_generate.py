@@ -2,7 +2,7 @@
 simulated second and total wall time as JSON (and a one-line table row with --table).
 
     python -m benchmarks.perf.bench_generate [--scene blender_scenes/quickstart.yaml] [--duration S]
-        [--resolution WxH] [--set render.surface=principled ...] [--repeat N] [--table]
+        [--resolution WxH] [--set render.surface=principled ...] [--repeat N] [--table] [--compare-labels]
 
 s_per_frame is the wall time of BlenderScene.render per sample: one Cycles render (luma + visible mask),
 the EXR read-back and the amodal mask; s_per_frame_after_first leaves out the first render, which also
@@ -10,6 +10,11 @@ builds Cycles' BVH and shaders once (first_frame_s). The event simulator and fil
 other_s = wall_s - frames x s_per_frame is the scene build (with the background bake, render.bake_background)
 plus events and writing. --repeat N runs it N times and adds the min and median of s_per_frame_after_first
 (the machine's speed drifts, so one run is not a figure).
+
+--compare-labels runs generate with and without the per-event object labels (the object-index frame kept
+per sample and each event labelled: dvsot.events.labels), alternating, --repeat times each, and prints the
+median wall seconds per sample of both and their ratio (the labels' cost per sample), after one
+uncounted warm-up run.
 """
 
 from __future__ import annotations
@@ -44,6 +49,8 @@ def main() -> None:
                    help="scene override, e.g. render.amodal_mask=render (repeatable)")
     p.add_argument("--repeat", type=int, default=1, help="runs; reports min and median s per sample over them")
     p.add_argument("--table", action="store_true", help="also print a markdown table row")
+    p.add_argument("--compare-labels", action="store_true",
+                   help="time generate with and without per-event labels, side by side")
     a = p.parse_args()
     overrides = dict(a.settings)
     if a.duration:
@@ -52,6 +59,9 @@ def main() -> None:
         w, h = (int(v) for v in a.resolution.split("x"))
         overrides.update({"sensor.width": w, "sensor.height": h})
     cfg = load_scene(a.scene, overrides)
+    if a.compare_labels:
+        print(json.dumps(_compare_labels(cfg, max(a.repeat, 1)), indent=2))
+        return
     runs = []
     for _ in range(max(a.repeat, 1)):
         start = time.perf_counter()
@@ -74,6 +84,27 @@ def main() -> None:
         extra = ", ".join(f"{k}={v}" for k, v in summary["settings"].items()) or "default"
         print(f"| {summary['name']} | {summary['resolution']} | {extra} | {summary['frames']} | "
               f"{summary['s_per_frame']} | {summary['s_per_frame_after_first']} | {summary['frames_per_simulated_s']} | {summary['wall_s']} |")
+
+
+def _compare_labels(cfg, repeat: int) -> dict:
+    """Median wall seconds per sample with and without per-event labels (runs alternate), and their ratio."""
+    from dvsot.pipeline.generate import generate
+
+    per_sample: dict[str, list[float]] = {"labels": [], "no_labels": []}
+    frames = 0
+    with tempfile.TemporaryDirectory() as tmp:  # warm-up, not counted: numba's kernels, Blender's first import
+        generate(cfg, Path(tmp) / "warm.h5", progress=False, labels=True)
+    for _ in range(repeat):
+        for key, labels in (("no_labels", False), ("labels", True)):
+            with tempfile.TemporaryDirectory() as tmp:
+                summary = generate(cfg, Path(tmp) / "bench.h5", progress=False, labels=labels)
+            frames = summary["frames"]
+            per_sample[key].append(summary["wall_s"] / frames)
+    med = {k: sorted(v)[len(v) // 2] for k, v in per_sample.items()}
+    return {"name": cfg.name, "resolution": f"{cfg.sensor.width}x{cfg.sensor.height}", "frames": frames,
+            "runs_each": repeat, "wall_s_per_sample_no_labels": round(med["no_labels"], 4),
+            "wall_s_per_sample_labels": round(med["labels"], 4),
+            "labels_over_no_labels": round(med["labels"] / med["no_labels"], 3)}
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ import torch
 
 def time_steps(model, batches, reference: bool, steps: int, repeat: int) -> dict:
     """Best wall and CPU seconds per training step over `repeat` runs of `steps` steps (after a warm-up)."""
-    from sctn.loss import voltage_loss
+    from sctn.loss import error_voltages, voltage_loss
     from sctn.neurons import CLIF
 
     forward = CLIF.forward
@@ -49,7 +49,9 @@ def time_steps(model, batches, reference: bool, steps: int, repeat: int) -> dict
                 if k == 1:
                     start, cpu = time.perf_counter(), time.process_time()
                 x, iou, pos = batches[k % len(batches)]
-                loss = voltage_loss(net(x).max(dim=1).values, iou, pos, "exp")
+                # the preset's error-time rule; its random steps seeded per step, so both paths draw the same
+                volts = error_voltages(net(x), pos, "stca", np.random.default_rng(k))
+                loss = voltage_loss(volts, iou, pos, "exp")
                 opt.zero_grad()
                 loss.backward()
                 opt.step()

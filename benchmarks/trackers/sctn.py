@@ -69,18 +69,24 @@ class SCTNBenchTracker(Tracker):
         """Operations of the segment just tracked: the search actually run (fast), or every candidate's own evaluation
         (spikes x fan-out, counted from each of the N candidates' spikes; bias additions apart)."""
         from sctn.encoding import encode_search
-        from sctn.energy import E_AC_PJ, bias_additions, candidate_ops, count_search_ops
+        from sctn.energy import bias_additions, candidate_ops, count_search_ops, snn_state_updates, tracker_energy
 
         model, cfg = self.tracker.model, self.tracker.model.cfg
         candidates, ref_box = self.tracker.last_search
         if self.tracker.fast:
             inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, cfg)
             ops = count_search_ops(model, *inputs, crop=self.tracker.crop)
-            return {"ac_ops": ops["ac_ops"], "mac_ops": ops["mac_ops"], "energy_pj": ops["energy_pj"]}
+            n = len(candidates)  # per evaluation: a segment's share per candidate, as the energy table states it
+            row = tracker_energy(n, ac_ops=ops["ac_ops"] / n, mac_ops=ops["mac_ops"] / n,
+                                 state_updates=ops["state_updates"] / n)["per_segment"]
+            return {"ac_ops": row["ac_ops"], "mac_ops": row["mac_ops"], "energy_pj": row["energy_pj"],
+                    "state_updates": row["state_updates"]}
+        n = len(candidates)
         ops = candidate_ops(model, segment.events, segment.t0_us, candidates)
-        bias = bias_additions(model) * len(candidates)  # 0 in the paper preset (no biases)
-        return {"ac_ops_per_candidate": ops / len(candidates), "ac_ops": ops, "bias_ac_ops": bias, "mac_ops": 0.0,
-                "energy_pj": (ops + bias) * E_AC_PJ}
+        bias = bias_additions(model) * n  # 0 in the paper preset (no biases)
+        row = tracker_energy(n, ac_ops=(ops + bias) / n, state_updates=snn_state_updates(cfg))  # the table's function
+        return {"ac_ops_per_candidate": ops / n, "ac_ops": ops, "bias_ac_ops": bias, "mac_ops": 0.0,
+                "energy_pj": row["per_segment"]["energy_pj"], "state_updates": row["per_segment"]["state_updates"]}
 
     def energy_per_segment(self) -> dict | None:
         """AC operations and pJ of the last counted segment (counted now if the last update was due)."""

@@ -80,12 +80,25 @@ def _stdout_closed() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
     saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except BaseException as caught:
+        if isinstance(caught, SystemExit) or (interrupts.interruption(caught) is None and not interrupts.seen()):
+            interrupts.restore(saved)
+            raise
+        interrupts.restore(saved)
+        signum = interrupts.seen() or signal.SIGINT
+        print(f"dvsot: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
     _one_line_warnings(f"dvsot {args.command}")
+    interrupted = False
     try:
         status = int(args._run(args) or 0)
+        if interrupts.late():  # its outputs were all in place before the signal: the run succeeded
+            print(f"dvsot {args.command}: done; {signal.Signals(interrupts.late()).name} arrived after its outputs "
+                  "were written", file=sys.stderr)
         sys.stdout.flush()  # a reader that closed the pipe (`| head -1`) shows here, not at interpreter exit
         return status
     except BrokenPipeError:
@@ -98,14 +111,23 @@ def main(argv: list[str] | None = None) -> int:
         _close_progress_bars()
         print(f"dvsot {args.command}: failed: {exc}", file=sys.stderr)
         return 1
-    except (KeyboardInterrupt, SystemError) as caught:
+    except (SystemExit, GeneratorExit):
+        raise
+    except BaseException as caught:
         exc = interrupts.interruption(caught)
-        if exc is None:  # a SystemError of its own
+        if exc is None and interrupts.seen():
+            # a signal inside a library (an extension module's import, a callback) that came out as that library's
+            # own error, its cause dropped (pyo3's PanicException, "numpy failed to import"): still the signal's
+            exc = interrupts.Interrupted(interrupts.seen())
+        if exc is None:  # an exception of its own
             raise
         _close_progress_bars()  # else each redraws itself at exit, under the message
         why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
         print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)
+        interrupted = True
         return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
     finally:
         interrupts.restore(saved)
+        if interrupted:
+            interrupts.quiet_exit()
 

@@ -222,11 +222,14 @@ def plan(args: argparse.Namespace) -> Plan:
     from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
+    from benchmarks.analysis.sequence_files import per_sequence_files
     from dvsot.dataset.safe_names import file_stem
-    from dvsot.runtime.outputs import output_dir
+    from dvsot.runtime.outputs import output_dir, run_dir
+    from dvsot.limits import MAX_WORKERS, range_problem
 
-    if args.jobs is not None and args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    problem = args.jobs is not None and range_problem("--jobs", args.jobs, 1, MAX_WORKERS)
+    if problem:
+        raise UserError(problem)
     if args.scheduler:
         from dvsot.pipeline.scene_runner import parse_scheduler
 
@@ -255,13 +258,27 @@ def plan(args: argparse.Namespace) -> Plan:
     out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
     sequences = resolve_data(args.data, args.split)
     files = list(sequences.values())
+    from benchmarks.evaluation.protocol import nothing_to_score
+
+    for f in files:  # else its row would be empty, at exit 0
+        problem = nothing_to_score(f, args.max_segments, reinitialise=args.protocol == "ar")
+        if problem:
+            raise UserError(problem)
+    videos: dict[str, str] = {}
     for seq in args.video:
+        from benchmarks.analysis.report import video_name
+
+        if videos.get(video_name(seq), seq) != seq:
+            raise UserError(f"--video {seq}: its file name {video_name(seq)} is also --video {videos[video_name(seq)]}'s")
+        videos[video_name(seq)] = seq
         if seq not in sequences:
             raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
         check_video(seq, sequences[seq])
     check_outputs(out_dir, _output_names(args, energy), files)
     for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
+    # every path under --out, checked now; --out holds this run's files only (benchmarks.analysis.report)
+    run_dir(out_dir, "--out", [*_output_names(args, energy), *per_sequence_files(trackers, sequences, args.protocol)])
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, args.option)
     if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
@@ -300,6 +317,10 @@ def run(args: argparse.Namespace) -> int:
         # computed before writing: a crash here leaves --out as it was
         energy = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
     print(format_ope(summary) if args.protocol == "ope" else terminal(summary))
+    from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, format_attributes
+
+    print("\nper attribute:\n" + format_attributes(
+        attribute_ope(results) if args.protocol == "ope" else attribute_scores(results), args.protocol))
     if energy is not None:
         from benchmarks.analysis.energy_table import format_energy_table
 

@@ -134,8 +134,9 @@ def run(args: argparse.Namespace) -> int:
     import glob
     import json
 
+    from pathlib import Path
+
     from dvsot.errors import UserError
-    from dvsot.runtime.worker_pool import WorkerPool
 
     paths: list[str] = []
     for spec in args.scenes:
@@ -143,6 +144,15 @@ def run(args: argparse.Namespace) -> int:
         if not found:
             raise UserError(f"{spec}: no scene files match")
         paths += found
+    from dvsot import limits as validate
+
+    if args.output and args.out_dir:
+        raise UserError("-o names the output file and --out-dir a directory for <name>.h5 files: give one of them")
+    for problem in (validate.range_problem("--jobs", args.jobs, 1, validate.MAX_WORKERS),
+                    args.variants is not None and validate.range_problem("--variants", args.variants, 1,
+                                                                          validate.MAX_VARIANTS)):
+        if problem:  # before any scene is read or drawn
+            raise UserError(problem)
     overrides = _overrides(args)
     if args.variants is not None or args.scheduler or args.dry_run or args.resume:
         return _many(args, paths, overrides)
@@ -152,16 +162,16 @@ def run(args: argparse.Namespace) -> int:
     _warn_nonsense(paths, configs)
     if args.output and len(paths) > 1:
         raise UserError("-o names one output file; use --out-dir for several scenes")
-    if args.jobs < 1:
-        raise UserError(f"--jobs must be >= 1, got {args.jobs}")
     outs = _outputs(args, paths, configs)
     jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, k)
             for p, o, k in zip(paths, outs, _keep_dirs(args.keep_frames, configs))]
     if args.jobs == 1 or len(jobs) == 1:
         summaries = [generate_one(*j) for j in jobs]
-    else:  # workers die with this process and never rename an output into place after it (dvsot.runtime.worker_pool)
-        with WorkerPool(min(args.jobs, len(jobs))) as pool:
-            summaries = pool.map(generate_one, *zip(*jobs))
+    else:  # local:N; its workers die with this process and commit nothing once it stops (dvsot.runtime.dask_tasks)
+        from dvsot.runtime.dask_tasks import map_tasks
+
+        summaries = map_tasks(f"local:{min(args.jobs, len(jobs))}", generate_one, jobs,
+                              lease_dir=Path(outs[0]).resolve().parent)
     for s in summaries:
         if args.quiet:
             print(json.dumps(s))
@@ -193,8 +203,6 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     if args.variants is not None:
         if len(paths) != 1:
             raise UserError(f"--variants draws from one template file, got {len(paths)}")
-        if args.variants < 1:
-            raise UserError(f"--variants must be >= 1, got {args.variants}")
         # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
         tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview,
                                       warn if args.dry_run else None, _LABELS)

@@ -1,12 +1,13 @@
 """Read an events file (and a recording's boxes) into a dataset file that bench, train and info use.
 
 Events: .aedat4, .raw (EVT 3, or EVT 2 with --evt 2, when the header does not say), .dat (CD or 2D
-events), .csv (t,x,y,p, t in microseconds) or .txt (t x y p, t in seconds; a first line "width
-height"); --size WxH where the file gives no sensor size (CSV, TXT without the line, a .raw or .dat
-header without geometry). Timestamps are rebased to the earliest event or annotation, which goes to
-/t_offset. Boxes (FE108/VisEvent style): x,y,w,h per annotated frame with --box-times-us (one time per
-line) or --box-times-from-frames (the .aedat4 file's frame timestamps, FE108), or t_s,x,y,w,h per
-line; --absent gives one 0/1 per box (1 = absent). Boxes stay at their annotation times
+events), .csv (t,x,y,p, t in whole microseconds) or .txt (t x y p, t in seconds, at most 6 decimals; a
+first line "width height"); --size WxH where the file gives no sensor size (CSV, TXT without the line, a
+.raw or .dat header without geometry). Every other line is an event or an error naming it: a header line
+other than dvsot's own "t,x,y,p" needs --header. Timestamps are rebased to the earliest event or
+annotation, which goes to /t_offset. Boxes (FE108/VisEvent style): x,y,w,h per annotated frame with
+--box-times-us (one time per line) or --box-times-from-frames (the .aedat4 file's frame timestamps, FE108),
+or t_s,x,y,w,h per line; --absent gives one 0/1 per box (1 = absent). Boxes stay at their annotation times
 and bench scores only the segments matched to one (docs/benchmarks.md); --interpolate treats them as a
 dense track instead (a file exported by dvsot).
 
@@ -40,12 +41,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--evt", choices=["2", "3"], default=IMPORT_EVT_VERSION.removeprefix("evt"),
                    help="EVT version of a .raw file without one in its header (default "
                         f"{IMPORT_EVT_VERSION.removeprefix('evt')})")
+    p.add_argument("--header", action="store_true",
+                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs no flag)")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 
 
+# dvsot.interop.recordings' settings as flags
 _LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "box_times_from_frames": "--box-times-from-frames",
-           "size": "--size"}  # dvsot.interop.recordings' settings as flags
+           "size": "--size", "segment_us": "--segment-us"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,17 +59,18 @@ def run(args: argparse.Namespace) -> int:
     from dvsot.interop.event_files import parse_size
     from dvsot.runtime.outputs import output_file
     from dvsot.interop.recordings import import_recording
-    from dvsot.limits import MIN_SEGMENT_US
+    from dvsot.limits import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
+    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
     inputs = [x for x in (args.events, args.boxes, args.box_times_us, args.absent) if x]
     output_file(args.output, "-o", inputs)
-    if args.segment_us < MIN_SEGMENT_US:
-        raise UserError(f"--segment-us {args.segment_us}: expected at least {MIN_SEGMENT_US}")
     size = parse_size(args.size, "--size") if args.size else None
     path = import_recording(args.events, args.output, boxes=args.boxes, box_times=args.box_times_us,
                             absent=args.absent, size=size, segment_us=args.segment_us,
                             evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=_LABELS,
-                            box_times_from_frames=args.box_times_from_frames)
+                            box_times_from_frames=args.box_times_from_frames, header=args.header)
     with Dataset(path) as ds:
         scored = int(ds.segment_scored().sum()) if ds.annotated else None
         print(f"{path}: {ds.width}x{ds.height}, {ds.num_events:,} events, {ds.duration_us / 1e6:.3f} s, "

@@ -1,4 +1,4 @@
-"""Summarise a dataset file: resolution, duration, events, rate, segments, box coverage, parameters.
+"""Summarise a dataset file: resolution, duration, events, rate, events per object, segments, box coverage, parameters.
 
 Examples:
   dvsot info out/quickstart.h5
@@ -34,6 +34,13 @@ def _text(info: dict) -> str:
              + (f", {info['noise_events']:,} noise" if info.get("noise_events") else "") + ")",
              f"  segments       {info['segments']} x {info['segment_ms']:g} ms, "
              f"{info['segments_with_box']} with a box ({100 * info['box_coverage']:.1f}%)"]
+    if "segments_absent" in info:
+        median = info["visibility_median"]
+        lines.append(f"  visibility     median {'-' if median is None else f'{median:.2f}'} of the target's pixels seen, "
+                     f"{info['segments_absent']} segments with the target absent")
+    for row in info.get("objects", ()):
+        lines.append(f"  {'objects' if row is info['objects'][0] else '':<15}{row['id']:>3} {one_line(row['name'])} "
+                     f"({row['role']}): {row['events']:,} events, {100 * row['share']:.1f}%")
     if info.get("t_offset_us"):
         lines.append(f"  t_offset       {info['t_offset_us']} us (added to t for the recording's clock)")
     if info.get("ground_truth") == "annotations":

@@ -4,6 +4,7 @@ Examples:
   dvsot simulate frames/ --fps 1000 -o out/frames.h5
   dvsot simulate clip.mp4 -o out/clip.h5 --srgb --cp 0.25 --cn 0.25 --sigma 0.03
   dvsot simulate stack.npy --timestamps times.txt -o out/stack.h5 --refractory-us 100
+  dvsot simulate frames/ --fps 1000 -o out/frames.h5 --preset davis346 --leak-hz 0.5
 """
 
 from __future__ import annotations
@@ -20,15 +21,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     timing = p.add_mutually_exclusive_group()
     timing.add_argument("--fps", type=float, help="frame rate (frames per second); default: the video's own")
     timing.add_argument("--timestamps", help="file of timestamps in seconds, one per line (as ESIM reads them)")
-    p.add_argument("--cp", type=float, default=0.2, help="ON contrast threshold, log intensity (default 0.2)")
-    p.add_argument("--cn", type=float, default=0.2, help="OFF contrast threshold, log intensity (default 0.2)")
-    p.add_argument("--sigma", type=float, default=0.0, help="per-pixel threshold std, log intensity (default 0)")
-    p.add_argument("--mismatch", choices=["fixed", "per_interval"], default="fixed",
+    p.add_argument("--preset", help="sensor model the other simulator flags start from: ideal (default, ESIM's "
+                                    "pixel), clean, noisy (v2e's), davis346, gen4 (docs/events.md)")
+    # each simulator flag left out keeps the preset's value
+    p.add_argument("--cp", type=float, help="ON contrast threshold, log intensity (ideal: 0.2)")
+    p.add_argument("--cn", type=float, help="OFF contrast threshold, log intensity (ideal: 0.2)")
+    p.add_argument("--sigma", type=float, help="per-pixel threshold std, log intensity (ideal: 0)")
+    p.add_argument("--mismatch", choices=["fixed", "per_interval"],
                    help="draw per-pixel thresholds once (fixed) or every interval, as ESIM (per_interval)")
-    p.add_argument("--refractory-us", type=float, default=0.0, help="refractory period, microseconds (default 0)")
-    p.add_argument("--log-eps", type=float, default=1e-3, help="eps in log(I + eps) (default 1e-3)")
-    p.add_argument("--shot-noise-hz", type=float, default=0.0, help="shot-noise events per pixel per second")
-    p.add_argument("--leak-hz", type=float, default=0.0, help="leak events per pixel per second")
+    p.add_argument("--refractory-us", type=float, help="refractory period, microseconds (ideal: 0)")
+    p.add_argument("--log-eps", type=float, help="eps in log(I + eps) (default 1e-3)")
+    p.add_argument("--shot-noise-hz", type=float, help="shot-noise events per pixel per second (ideal: 0)")
+    p.add_argument("--leak-hz", type=float, help="leak events per pixel per second (ideal: 0)")
+    for field, (kind, text) in _STAGE_FLAGS.items():
+        p.add_argument("--" + field.replace("_", "-"), type=kind, help=text)
     p.add_argument("--srgb", action="store_true", help="undo the sRGB curve of 8/16-bit input before use")
     p.add_argument("--seed", type=int, default=0, help="random seed (thresholds, noise)")
     p.add_argument("--segment-us", type=int, default=SEGMENT_US,
@@ -37,28 +43,47 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+# the sensor model's fields (dvsot.events.sensor), each with a flag of its name: its type and help (numpy and numba
+# are not imported for --help)
+_STAGE_FLAGS = {
+    "linlog_intensity": (float, "intensity (1 = full scale) below which the photoreceptor is linear (ideal: 0, log)"),
+    "lowpass_order": (int, "photoreceptor low-pass stages: 0 (ideal), 1 or 2"),
+    "lowpass_cutoff_hz": (float, "low-pass 3 dB cutoff at full-scale intensity, Hz"),
+    "dark_intensity": (float, "dark current as an intensity (1 = full scale; default 20/255, v2e's)"),
+    "shot_noise_bright_factor": (float, "shot-noise rate at full-scale intensity over the rate in the dark "
+                                        "(ideal: 1)"),
+    "leak_spread_decades": (float, "std of log10 of the pixels' leak rates, decades (ideal: 0)"),
+    "leak_period_cv": (float, "coefficient of variation of leak periods (ideal: 1, Poisson; 0 periodic)"),
+    "hot_pixel_fraction": (float, "fraction of pixels that are hot, 0..1 (ideal: 0)"),
+    "hot_pixel_hz": (float, "events per second of a hot pixel"),
+    "latency_us": (float, "delay of every event, microseconds (ideal: 0)"),
+    "latency_jitter_us": (float, "std of the delay, microseconds (ideal: 0)"),
+    "readout_limit_hz": (float, "events per second the readout passes (ideal: 0, unlimited; else >= 1)"),
+    "readout_fifo_events": (int, "events waiting for the readout before new ones are dropped (0: none dropped)"),
+}
 # EventParams field -> the flag that sets it, so that a bad value is reported by its flag
 _PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
                 "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
-                "leak_hz": "--leak-hz"}
+                "leak_hz": "--leak-hz", "preset": "--preset",
+                **{field: "--" + field.replace("_", "-") for field in _STAGE_FLAGS}}
 
 
 def _event_params(args: argparse.Namespace):
-    """The simulator parameters from the flags; a bad value raises UserError naming its flag."""
+    """The simulator parameters from the flags over the preset's; a bad value raises UserError naming its flag."""
     from pydantic import ValidationError
 
     from dvsot.errors import UserError
-    from dvsot.events import EventParams
+    from dvsot.events.simulator import EventParams, param_problem
 
-    values = dict(cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma, mismatch=args.mismatch,
-                  refractory_us=args.refractory_us, log_eps=args.log_eps, shot_noise_hz=args.shot_noise_hz,
-                  leak_hz=args.leak_hz)
+    values = dict(preset=args.preset, cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
+                  mismatch=args.mismatch, refractory_us=args.refractory_us, log_eps=args.log_eps,
+                  shot_noise_hz=args.shot_noise_hz, leak_hz=args.leak_hz,
+                  **{field: getattr(args, field) for field in _STAGE_FLAGS})
+    values = {k: v for k, v in values.items() if v is not None}
     try:
         return EventParams(**values)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = str(err["loc"][0]) if err["loc"] else "?"
-        raise UserError(f"{_PARAM_FLAGS.get(field, field)} {values.get(field)}: {err['msg']}") from None
+        raise UserError(param_problem(exc, _PARAM_FLAGS)) from None
 
 
 def _check_flags(args: argparse.Namespace) -> None:
@@ -67,17 +92,21 @@ def _check_flags(args: argparse.Namespace) -> None:
 
     from dvsot.errors import UserError
     from dvsot.pipeline.simulate import MAX_FPS
-    from dvsot.limits import MIN_SEGMENT_US
+    from dvsot.limits import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
     if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
         raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
     if args.segment_us < MIN_SEGMENT_US:
         raise UserError(f"--segment-us must be at least {MIN_SEGMENT_US} (1 ms), got {args.segment_us}")
+    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
     if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
         raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
 
 
-_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o"}  # how dvsot.pipeline.simulate's messages name them
+_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o", "segment_us": "--segment-us",
+           "boxes": "--boxes"}  # how dvsot.pipeline.simulate's messages name them
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ Examples:
   dvsot train --data 'data/dvsot21/*.h5' --epochs 2 --loss linear --seed 3 -o runs/sctn_linear.pt
   dvsot train --model sctn_ann -o runs/sctn_ann.pt        # SCTN's layers with ReLU, trained the same way
   dvsot train --model siamfc -o runs/siamfc.pt            # SiamFC on ATSLTD frames
+  dvsot train --val-data data/dvsot21_val --val-every 50 --val-arscore-every 200 -o runs/sctn.pt  # learning curves
 """
 
 from __future__ import annotations
@@ -16,7 +17,9 @@ SCTN_LIKE = ("sctn", "sctn_ann")
 # flags that only some models have: {flag dest: models}; a flag is given when its value is not None
 ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
         "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
-        "tail_steps": ("sctn",), "input": ("sctn_ann",)}
+        "tail_steps": ("sctn",), "input": ("sctn_ann",), "error_time": SCTN_LIKE, "init": ("sctn",),
+        "fluctuation_xi": ("sctn",), "val_data": SCTN_LIKE, "val_every": SCTN_LIKE, "val_segments": SCTN_LIKE,
+        "val_arscore_every": SCTN_LIKE, "val_arscore_segments": SCTN_LIKE}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -45,7 +48,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--background-term", action="store_true", default=None,
                    help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
     p.add_argument("--calibrate", action="store_true", default=None,
-                   help="sctn, deviation from the paper: data-driven initial weight scale (an ablation row)")
+                   help="sctn: the same as --init calibrate")
+    p.add_argument("--init", choices=["kaiming", "calibrate", "fluctuation"], default=None,
+                   help="sctn: initial weights: kaiming (default), calibrate (data-driven scale per layer) or "
+                        "fluctuation (Rossbroich et al. 2022: V's fluctuations theta / xi on a first batch)")
+    p.add_argument("--fluctuation-xi", type=float, default=None, metavar="XI",
+                   help="sctn, --init fluctuation: theta over the initial standard deviation of V (default 2)")
+    p.add_argument("--error-time", choices=["stca", "max"], default=None,
+                   help="the step each sample's error sits at: stca (default; STCA's rule) or max (V's maximum "
+                        "over all steps, the rule before it: an ablation row)")
+    p.add_argument("--val-data", nargs="+", default=None, metavar="DIR",
+                   help="validation files, directories or globs (any split): validate on them instead of every "
+                        "10th training segment, which then all train")
+    p.add_argument("--val-every", type=int, default=None, metavar="K", help="validate every K steps (default 50)")
+    p.add_argument("--val-segments", type=int, default=None, metavar="M",
+                   help="validation segments, spread over the files (default 40)")
+    p.add_argument("--val-arscore-every", type=int, default=None, metavar="K",
+                   help="with --val-data: also track the validation sequences every K steps and at the end, and "
+                        "record their ARscore (a copy of the network, fine-tuned as the tracker does)")
+    p.add_argument("--val-arscore-segments", type=int, default=None, metavar="N",
+                   help="with --val-arscore-every: track at most N segments of each validation sequence")
     p.add_argument("--tail-steps", type=int, default=None,
                    help="sctn, deviation from the paper: empty steps after the 10 ms window (default 0)")
     p.add_argument("--bias", action="store_true", default=None,
@@ -65,9 +87,12 @@ def _network_config(args: argparse.Namespace):
     from sctn.ann import TwinConfig
     from sctn.network import NetworkConfig
 
+    from dvsot.limits import MAX_TAIL_STEPS, range_problem
+
     tail = args.tail_steps or 0
-    if tail < 0:
-        raise UserError(f"--tail-steps must be >= 0, got {args.tail_steps}")
+    problem = range_problem("--tail-steps", tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
+    if problem:
+        raise UserError(problem)
     net = {"tail_steps": tail, "bias": bool(args.bias)}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
@@ -91,15 +116,17 @@ def _train_config(args: argparse.Namespace):
         if getattr(args, dest) is not None and args.model not in models:
             raise UserError(f"--{dest.replace('_', '-')}: not a setting of --model {args.model} "
                             f"(only of {', '.join(models)})")
-    common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr")
-              if getattr(args, k) is not None}
+    common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr", "val_every",
+                                            "val_segments") if getattr(args, k) is not None}
     common.update(seed=args.seed, max_minutes=args.max_minutes)
     try:
         if args.model == "siamfc":
             from benchmarks.trackers.siamfc.train import SiamFCTrainConfig
 
             return SiamFCTrainConfig(**common)
-        return TrainConfig(**common, loss=args.loss or "exp", ops_penalty=args.ops_penalty or 0.0,
+        extra = {k: getattr(args, k) for k in ("error_time", "init", "fluctuation_xi", "val_arscore_every")
+                 if getattr(args, k) is not None}
+        return TrainConfig(**common, **extra, loss=args.loss or "exp", ops_penalty=args.ops_penalty or 0.0,
                            squared_error=bool(args.squared_error), background_term=bool(args.background_term),
                            calibrate=bool(args.calibrate), network=_network_config(args))
     except TrainConfigError as exc:  # every field set here is the flag of the same name
@@ -117,6 +144,26 @@ def _trainer(model: str):
     return train
 
 
+def validation_scorer(files: list, max_segments: int | None, seed: int):
+    """model -> {"arscore", "accuracy", "robustness"} of SCTNTracker (or the twin in it) on the validation
+    sequences: a fine-tuned copy of the network per sequence, the paper's protocol with re-initialisation."""
+    def score(model) -> dict:
+        from benchmarks.evaluation.metrics import pooled
+        from benchmarks.evaluation.protocol import run_sequence
+        from benchmarks.trackers.sctn import SCTNBenchTracker
+        from dvsot.dataset import Dataset
+        from sctn.tracker import SCTNTracker
+
+        ious = []
+        for f in files:
+            with Dataset(f) as ds:
+                tracker = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed))
+                ious.append(run_sequence(tracker, ds, "sctn", max_segments=max_segments).iou)
+        s = pooled(ious)
+        return {"arscore": s.arscore, "accuracy_tracking": s.accuracy, "robustness": s.robustness}
+    return score
+
+
 def run(args: argparse.Namespace) -> int:
     """Train, then save the checkpoint (atomically) with its provenance."""
     import json
@@ -128,15 +175,31 @@ def run(args: argparse.Namespace) -> int:
     from sctn.checkpoint import check_checkpoint_output, save_checkpoint
     from sctn.training.snn import provenance
 
+    from dvsot.limits import MAX_THREADS, range_problem
+
     cfg = _train_config(args)
-    if args.threads is not None and args.threads < 1:
-        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    problem = args.threads is not None and range_problem("--threads", args.threads, 1, MAX_THREADS)
+    if problem:
+        raise UserError(problem)
     files = find_datasets(args.data, split=None if args.split == "any" else args.split, need_events=True)
-    out = check_checkpoint_output(args.output or f"runs/{args.model}.pt", "-o", inputs=files)
+    val_files = find_datasets(args.val_data, split=None, need_events=True) if args.val_data else None
+    if val_files and set(map(str, val_files)) & set(map(str, files)):
+        raise UserError(f"{', '.join(sorted(set(map(str, val_files)) & set(map(str, files))))}: in both --data and "
+                        "--val-data (validation must be apart from training)")
+    if args.val_arscore_every is not None and not val_files:
+        raise UserError("--val-arscore-every needs --val-data (the sequences to track)")
+    if args.val_arscore_segments is not None and args.val_arscore_segments < 1:
+        raise UserError(f"--val-arscore-segments must be >= 1, got {args.val_arscore_segments}")
+    out = check_checkpoint_output(args.output or f"runs/{args.model}.pt", "-o", inputs=files + (val_files or []))
     if args.threads:
         torch.set_num_threads(args.threads)
     try:
-        model, history = _trainer(args.model)(files, cfg, progress=not args.quiet)
+        validation = {}
+        if val_files:
+            validation["val_files"] = val_files
+            if args.val_arscore_every is not None:
+                validation["val_score"] = validation_scorer(val_files, args.val_arscore_segments, args.seed)
+        model, history = _trainer(args.model)(files, cfg, progress=not args.quiet, **validation)
     except UserError:  # already names its file (a UserError is a ValueError too)
         raise
     except ValueError as exc:
@@ -145,9 +208,13 @@ def run(args: argparse.Namespace) -> int:
     if history.get("silent"):  # a dead network is no checkpoint: keep what -o held
         raise RunError(f"{out}: not written: the trained network is silent (target output {final['vmax_max']:g} "
                        f"at most on the {history['val_segments']} validation segments' samples); train again "
-                       f"with another --seed" + (" or --calibrate" if args.model == "sctn" else ""))
-    save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
+                       f"with another --seed" + (" or --init calibrate / fluctuation" if args.model == "sctn" else ""))
+    from dvsot.runtime import interrupts
+
+    with interrupts.last_step():  # once the checkpoint's renames begin the run has completed: a signal then is late
+        save_checkpoint(out, model, provenance(files, cfg, history), kind=args.model)
     print(json.dumps({"checkpoint": str(out), "model": args.model, "steps": history["steps"],
                       "minutes": round(history["minutes"], 2), "train_segments": history["train_segments"],
-                      "val": final}))
+                      "validation": history.get("validation"), "val": final,
+                      "nearly_silent": history.get("nearly_silent")}))
     return 0

@@ -42,6 +42,16 @@ def interpolate_boxes(t_samples: np.ndarray, xywh: np.ndarray, t_query: np.ndarr
     return out
 
 
+def mask_visibility(amodal: np.ndarray, visible: np.ndarray) -> float:
+    """Visible target pixels over amodal target pixels (both on the sensor), clipped to 0..1; 0 where there are none.
+
+    The amodal mask is rasterised at pixel centres, the visible one comes from the render's index pass, whose
+    pixel filter may place a visible pixel just outside it: the ratio is clipped, not a count of the overlap.
+    """
+    n_amodal = int(np.count_nonzero(amodal))
+    return min(1.0, int(np.count_nonzero(visible)) / n_amodal) if n_amodal else 0.0
+
+
 def box_from_mask(mask: np.ndarray, threshold: float = 0.5) -> np.ndarray:
     """The upright rectangle circumscribing every contour of mask > threshold, xywh float32 pixels; NaN if empty."""
     import cv2

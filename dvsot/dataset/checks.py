@@ -12,7 +12,8 @@ from dvsot import limits as validate
 from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
 from dvsot.errors import exception_line
 
-_KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"}
+_KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers", "S": "fixed-length byte strings",
+               "f": "floats"}
 
 
 class Damaged(Exception):
@@ -43,6 +44,26 @@ def check_layout(f: h5py.File) -> None:
         for name, n in rows.items():
             if n != rows[first]:
                 raise Damaged(f"/{name} has {n} rows, /{first} has {rows[first]}")
+
+
+def check_stored(f: h5py.File) -> None:
+    """Raise Damaged if a dataset declares more rows than the file stores: a chunk never written (or contiguous
+    storage shorter than the shape) reads as zeros, so a small file could make a reader allocate for billions."""
+    for name in LAYOUT:
+        if name not in f:
+            continue
+        ds = f[name]
+        if ds.size == 0:
+            continue
+        if ds.chunks is not None:
+            want = int(np.prod([-(-n // c) for n, c in zip(ds.shape, ds.chunks)]))
+            have = ds.id.get_num_chunks()
+            if have != want:
+                raise Damaged(f"/{name} declares {ds.shape[0]} rows in {want} chunks, but the file stores {have} "
+                              f"of them (the file is truncated or crafted)")
+        elif ds.id.get_storage_size() < ds.size * ds.dtype.itemsize:
+            raise Damaged(f"/{name} declares {ds.shape[0]} rows ({ds.size * ds.dtype.itemsize} bytes), but the file "
+                          f"stores {ds.id.get_storage_size()} bytes of them (the file is truncated or crafted)")
 
 
 def check_root_links(f: h5py.File, version: int) -> int:

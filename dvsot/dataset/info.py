@@ -1,4 +1,5 @@
-"""What a dataset file holds: resolution, duration, events, rate, segments, box coverage, parameters (`dvsot info`)."""
+"""What a dataset file holds: resolution, duration, events, rate, each object's share, segments, box coverage,
+parameters (`dvsot info`)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,14 @@ import os
 import numpy as np
 
 from dvsot.dataset import Dataset
+from dvsot.events.batch import NOISE_KINDS
 
 
 def dataset_info(path: str | os.PathLike) -> dict:
     """A dict summary of one dataset file (times in seconds, sizes in pixels); every event is read and checked."""
     with Dataset(path) as ds:
         n_pos, n_noise, has_signal = 0, 0, False
+        kinds = None  # events of each noise kind, when the file has /events/noise_kind
         # chunked (files may hold hundreds of millions of events), and every chunk is checked on the way:
         # info is where a damaged file should show up, so it reads all of it
         for batch in ds.chunks():
@@ -20,6 +23,9 @@ def dataset_info(path: str | os.PathLike) -> dict:
             if batch.signal is not None:
                 has_signal = True
                 n_noise += int(np.count_nonzero(~batch.signal))
+            if batch.noise_kind is not None:
+                counts = np.bincount(batch.noise_kind, minlength=len(NOISE_KINDS))
+                kinds = counts if kinds is None else kinds + counts
         n_noise = n_noise if has_signal else None
         seg = ds.segment_boxes()
         have = ~np.isnan(seg).any(axis=1)
@@ -36,13 +42,25 @@ def dataset_info(path: str | os.PathLike) -> dict:
             "t_offset_us": ds.t_offset_us,
             "ground_truth": "annotations" if ds.annotated else "rendered",
         }
+        counts = ds.object_counts()
+        if counts is not None:  # per-event labels (dvsot.events.labels): each object's share of the events
+            out["objects"] = [dict(row, events=counts[row["id"]],
+                                   share=counts[row["id"]] / ds.num_events if ds.num_events else 0.0)
+                              for row in ds.objects]
+        absent = ds.segment_absent()
+        if absent is not None:  # rendered: how much of the target is seen (docs/dataset-files.md)
+            vis = ds.segment_visibility()
+            out["segments_absent"] = int(absent.sum())
+            out["visibility_median"] = float(np.nanmedian(vis)) if np.isfinite(vis).any() else None
         if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
             out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
         if have.any():
             w, h = seg[have, 2], seg[have, 3]
             out["box_width_px"] = [float(w.min()), float(np.median(w)), float(w.max())]
             out["box_height_px"] = [float(h.min()), float(np.median(h)), float(h.max())]
-        for key in ("simulator", "seed", "generator", "versions"):
+        if kinds is not None:
+            out["noise_events_by_kind"] = {k: int(n) for k, n in zip(NOISE_KINDS[1:], kinds[1:])}
+        for key in ("sensor_counts", "simulator", "seed", "generator", "versions"):
             if key in ds.attrs:
                 out[key] = ds.attrs[key]
     return out

@@ -12,10 +12,11 @@ import h5py
 import numpy as np
 
 from dvsot import limits as validate
-from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr
+from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
 from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      columns_problem, int_attr, ms_to_idx_problem, times_problem)
+                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem)
 from dvsot.errors import UserError, exception_line
+from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
 
 
@@ -52,8 +53,12 @@ class Dataset:
         if not 1 <= version <= FORMAT_VERSION:
             raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
         check_layout(f)
+        check_stored(f)
         self.t_offset_us = check_root_links(f, version)
-        self.attrs: dict[str, Any] = {k: decode_attr(v) for k, v in f.attrs.items()}
+        try:
+            self.attrs: dict[str, Any] = read_attrs(f)
+        except ValueError as exc:
+            raise Damaged(str(exc)) from None
         self.width = int_attr(self.attrs, "width", 1, MAX_PIXELS)
         self.height = int_attr(self.attrs, "height", 1, MAX_PIXELS)
         if self.width * self.height > validate.MAX_SENSOR_PIXELS:
@@ -66,9 +71,11 @@ class Dataset:
         self.split = str(self.attrs.get("split") or "")
         ev = f["events"]
         self._has_signal = "signal" in ev
+        self._has_kind = "noise_kind" in ev  # files of the ideal sensor model and older ones have none
         # keep the column objects open: HDF5's chunk cache lives with them, and reopening one per read
         # would decompress a whole 2 MB chunk for every query
-        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal") if name in ev}
+        self._columns = {name: ev[name] for name in ("x", "y", "t", "p", "signal", "noise_kind", "object")
+                         if name in ev}
         self.num_events = int(ev["t"].shape[0])
         if "num_events" in self.attrs and int_attr(self.attrs, "num_events", 0) != self.num_events:
             raise Damaged(f"root attribute 'num_events' is {self.attrs['num_events']}, "
@@ -86,9 +93,28 @@ class Dataset:
         # recordings: the /boxes row each segment is scored against (-1: none), dvsot.dataset.boxes.match_annotations
         self._seg_ann = self._load("segments/annotation").astype(np.int64) if "segments/annotation" in f else None
         n_boxes = f["boxes/t"].shape[0]
+        box_t = self._load("boxes/t")
+        if n_boxes and not (np.all(box_t[1:] > box_t[:-1]) and 0 <= box_t[0] and box_t[-1] <= self.duration_us):
+            raise Damaged(f"/boxes/t runs from {int(box_t[0])} us to {int(box_t[-1])} us, expected increasing times "
+                          f"within 0..{self.duration_us} us (root attribute 'duration_us')")
         if self._seg_ann is not None and len(self._seg_ann) and not (
                 -1 <= self._seg_ann.min() and self._seg_ann.max() < n_boxes):
             raise Damaged(f"/segments/annotation holds rows outside -1..{n_boxes - 1} (/boxes has {n_boxes})")
+        self._seg_visibility = self._seg_absent = None
+        if "segments/visibility" in f or "segments/absent" in f or "boxes/visibility" in f:
+            for name in ("boxes/visibility", "segments/visibility", "segments/absent"):
+                if name not in f:
+                    raise Damaged(f"missing /{name} (a file with visibility has all of /boxes/visibility, "
+                                  "/segments/visibility and /segments/absent)")
+            for name in ("boxes/visibility", "segments/visibility"):
+                v = self._load(name)
+                if np.any(v < 0) or np.any(v > 1) or (name == "boxes/visibility" and np.isnan(v).any()):
+                    raise Damaged(f"/{name} holds values outside 0..1")
+            self._seg_visibility = self._load("segments/visibility").astype(np.float32)
+            self._seg_absent = self._load("segments/absent")
+            if np.any(self._seg_absent > 1):
+                raise Damaged("/segments/absent holds values other than 0 and 1")
+            self._seg_absent = self._seg_absent.astype(bool)
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
             problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
@@ -97,15 +123,61 @@ class Dataset:
         problem = validate.digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
+        # /t_offset is a scalar (no chunk, so no Fletcher-32): its copy among the digested attributes guards it
+        if "t_offset_us" in self.attrs and int_attr(self.attrs, "t_offset_us", -(2**63)) != self.t_offset_us:
+            raise Damaged(f"/t_offset is {self.t_offset_us} us, but root attribute 't_offset_us' (covered by "
+                          f"'{validate.DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
+        self._object_table(f)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
-                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1")}
+                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1"),
+                        "noise_kind": (len(NOISE_KINDS), f"expected 0..{len(NOISE_KINDS) - 1} ({', '.join(NOISE_KINDS)})")}
         if self.num_events:  # two chunk reads: in a sorted file the ends bound every timestamp
             first = int(self._read("t", 0, 1)[0])
             last = int(self._read("t", self.num_events - 1, self.num_events)[0])
             if not 0 <= first <= last < self.duration_us:
                 raise Damaged(f"/events/t runs from {first} us to {last} us, expected "
                                f"0 <= first <= last < root attribute 'duration_us' ({self.duration_us})")
+
+    def _object_table(self, f: h5py.File) -> None:
+        """The object table and per-id event counts, the label column read through once: ids outside the table refused."""
+        self._has_object = "object" in self._columns
+        if self._has_object != ("objects" in f):
+            raise Damaged("/events/object without /objects" if self._has_object else "/objects without /events/object")
+        self.objects: list[dict] | None = None
+        self._object_counts: np.ndarray | None = None
+        if not self._has_object:
+            return
+        from dvsot.events.labels import table_problem
+
+        for name in ("objects/id", "objects/name", "objects/role"):
+            if name not in f:
+                raise Damaged(f"missing /{name} (a file with /events/object has the whole /objects table)")
+        if f["events/object"].dtype != np.uint8:
+            raise Damaged(f"/events/object has dtype {f['events/object'].dtype}, expected uint8")
+        ids = self._load("objects/id").astype(np.int64)
+        names, roles = ([v.decode("utf-8", "replace") for v in self._load(f"objects/{k}")] for k in ("name", "role"))
+        problem = table_problem(ids, names, roles)
+        if problem:
+            raise Damaged(problem)
+        self.objects = [{"id": int(i), "name": n, "role": r} for i, n, r in zip(ids, names, roles)]
+        self._known_ids = np.zeros(256, bool)
+        self._known_ids[ids] = True
+        counts = np.zeros(256, np.int64)
+        step = 1 << 22
+        for i0 in range(0, self.num_events, step):
+            counts += np.bincount(self._read("object", i0, min(i0 + step, self.num_events)), minlength=256)[:256]
+        stray = np.flatnonzero((counts > 0) & ~self._known_ids)
+        if len(stray):
+            raise Damaged(f"/events/object holds id {int(stray[0])} ({int(counts[stray[0]])} events), "
+                          f"which /objects/id does not list")
+        self._object_counts = counts
+
+    def object_counts(self) -> dict[int, int] | None:
+        """Events per object id of the table (every id listed, zeros kept), or None for a file without labels."""
+        if self.objects is None:
+            return None
+        return {row["id"]: int(self._object_counts[row["id"]]) for row in self.objects}
 
     def __enter__(self) -> "Dataset":
         return self
@@ -161,12 +233,19 @@ class Dataset:
         columns = {name: self._read(name, i0, i1) for name in ("x", "y", "t", "p")}
         if self._has_signal:
             columns["signal"] = self._read("signal", i0, i1)
+        if self._has_kind:
+            columns["noise_kind"] = self._read("noise_kind", i0, i1)
+        obj = self._read("object", i0, i1) if self._has_object else None
         t = columns.pop("t")
         problem = times_problem(t, t0_us, t1_us, i0, source) or columns_problem(columns, self._limits, i0)
+        if not problem and obj is not None and len(obj) and not self._known_ids[obj].all():
+            i = int(np.flatnonzero(~self._known_ids[obj])[0])
+            problem = f"/events/object holds id {int(obj[i])} at event {i0 + i}, which /objects/id does not list"
         if problem:
             raise self._damaged(problem)
         sig = columns["signal"].astype(bool) if self._has_signal else None
-        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig)
+        kind = columns["noise_kind"].astype(np.uint8) if self._has_kind else None
+        return EventBatch(columns["x"], columns["y"], t, columns["p"], sig, kind, object=obj)
 
     def events(self, t0_us: int, t1_us: int) -> EventBatch:
         """The events with t0_us <= t < t1_us (microseconds), found via ms_to_idx without a full scan."""
@@ -174,6 +253,9 @@ class Dataset:
         i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
         if i1 <= i0:
             return EventBatch.empty()
+        if i1 - i0 > validate.MAX_WINDOW_EVENTS:  # before the columns are read: a crafted file could hold billions
+            raise UserError(f"{self.path}: {t0_us}..{t1_us} us holds {i1 - i0} events, more than the bound of "
+                            f"{validate.MAX_WINDOW_EVENTS} events read at once")
         return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
 
     def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:
@@ -227,7 +309,9 @@ class Dataset:
             raise IndexError(f"segment {i} out of range 0..{self.num_segments - 1}")
         t0, t1 = i * self.segment_us, (i + 1) * self.segment_us
         vis = None if self._seg_vis is None else self._seg_vis[i].copy()
-        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis)
+        visibility = None if self._seg_visibility is None else float(self._seg_visibility[i])
+        absent = None if self._seg_absent is None else bool(self._seg_absent[i])
+        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis, visibility, absent)
 
     def segments(self, start: int = 0, stop: int | None = None) -> Iterator[Segment]:
         """Segments start..stop-1 in order."""
@@ -254,9 +338,19 @@ class Dataset:
         """Per segment, the /boxes row of its annotation (-1: none), or None for a rendered file."""
         return None if self._seg_ann is None else self._seg_ann.copy()
 
+    def segment_visibility(self) -> np.ndarray | None:
+        """Per segment, visible / amodal target pixels at its end (0..1, NaN outside the track), or None (not in the file)."""
+        return None if self._seg_visibility is None else self._seg_visibility.copy()
+
+    def segment_absent(self) -> np.ndarray | None:
+        """Per segment, True where nothing of the target is visible at its end or it is outside the sensor, or None."""
+        return None if self._seg_absent is None else self._seg_absent.copy()
+
     def boxes(self) -> BoxTrack:
-        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels)."""
-        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")))
+        """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels),
+        visibility (None where the file has none)."""
+        vis = self._load("boxes/visibility") if self._seg_visibility is not None else None
+        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")), vis)
 
 
 

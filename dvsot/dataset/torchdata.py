@@ -13,7 +13,11 @@ An item is (events, box): the segment's events as a structured array with fields
 /t_offset; p signed, 1 brighter and 0 darker, as tonic's transforms expect) and its ground-truth
 box xywh (pixels, float32). `transform` maps the events (a tonic transform such as
 `tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works), `target_transform`
-the box. The object holds only paths and an index, so it pickles; each process
+the box. With `labels=True` (files with per-event labels, docs/events.md) an item is (events, box,
+objects, target_mask): objects the id of the object that made each event (u1, as long as the events,
+before any transform), target_mask a bool (height, width) array of the pixels where a target event fired
+in the segment; `collate_segments` gives the masks as one (B, H, W) tensor and the ids as a list.
+The object holds only paths and an index, so it pickles; each process
 opens the files it reads on first use and keeps them open (HDF5 handles must not cross a fork).
 No torch import at module level: DataLoader takes any object with __len__ and __getitem__, and only
 collate_segments, which builds tensors, imports torch. `dvsot.dataset.tonic_dataset.TonicDataset` adds tonic's
@@ -34,12 +38,18 @@ class SegmentDataset:
     """Map-style dataset of every segment with a ground-truth box (or every segment) of some dataset files."""
 
     def __init__(self, data: Any, split: str | None = None, transform: Callable | None = None,
-                 target_transform: Callable | None = None, with_box: bool = True, verify: bool = False) -> None:
+                 target_transform: Callable | None = None, with_box: bool = True, verify: bool = False,
+                 labels: bool = False) -> None:
         self.paths = [str(p) for p in find_datasets(data, split=split, verify=verify)]
         self.transform, self.target_transform = transform, target_transform
+        self.labels = bool(labels)
         rows, sizes = [], set()
         for k, path in enumerate(self.paths):
             with Dataset(path) as ds:
+                if self.labels and ds.objects is None:
+                    from dvsot.errors import UserError
+
+                    raise UserError(f"{path}: no per-event labels (/events/object), which labels=True asks for")
                 keep = ds.segment_scored()
                 if with_box:
                     keep = keep & np.isfinite(ds.segment_boxes()).all(axis=1)
@@ -78,18 +88,21 @@ class SegmentDataset:
         k, s = self._index[i]
         return self.paths[int(k)], int(s)
 
-    def __getitem__(self, i: int) -> tuple[Any, Any]:
+    def __getitem__(self, i: int) -> tuple[Any, ...]:
         if not -len(self) <= i < len(self):
             raise IndexError(f"item {i} out of range for {len(self)} segments")
         k, s = self._index[i]
-        seg = self._dataset(int(k)).segment(int(s))
+        ds = self._dataset(int(k))
+        seg = ds.segment(int(s))
         events: Any = seg.events.to_structured()
         box: Any = seg.box.astype(np.float32)
         if self.transform is not None:
             events = self.transform(events)
         if self.target_transform is not None:
             box = self.target_transform(box)
-        return events, box
+        if not self.labels:
+            return events, box
+        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height)
 
     def close(self) -> None:
         """Close the files this process opened."""
@@ -99,7 +112,17 @@ class SegmentDataset:
         self._open = {}
 
 
-def collate_segments(batch: list[tuple[Any, Any]]) -> tuple[Any, Any]:
+def target_mask(events, width: int, height: int) -> np.ndarray:
+    """bool (height, width): the pixels where at least one of the events (an EventBatch with labels) is the target's."""
+    from dvsot.events.labels import TARGET_ID
+
+    mask = np.zeros((height, width), bool)
+    hit = events.object == TARGET_ID
+    mask[events.y[hit], events.x[hit]] = True
+    return mask
+
+
+def collate_segments(batch: list[tuple[Any, ...]]) -> tuple[Any, ...]:
     """DataLoader collate_fn: boxes as a (B, 4) float32 tensor (pixels); events stacked to one tensor when every
     item is a numeric array or tensor of one shape (a transform's frames or voxel grids), else a list (structured
     events differ in length and torch holds no structured arrays; numeric ones become tensors)."""
@@ -111,8 +134,11 @@ def collate_segments(batch: list[tuple[Any, Any]]) -> tuple[Any, Any]:
         a = np.asarray(value)
         return torch.from_numpy(np.ascontiguousarray(a)) if a.dtype.kind in "biuf" else value
 
-    events = [tensor(e) for e, _ in batch]
+    events = [tensor(item[0]) for item in batch]
     if events and all(isinstance(e, torch.Tensor) and e.shape == events[0].shape for e in events):
         events = torch.stack(events)
-    boxes = [b if isinstance(b, torch.Tensor) else torch.as_tensor(np.asarray(b, np.float32)) for _, b in batch]
+    boxes = [b if isinstance(b, torch.Tensor) else torch.as_tensor(np.asarray(b, np.float32)) for _, b, *_ in batch]
+    if batch and len(batch[0]) == 4:  # labels=True: per-event ids (a list: lengths differ) and the masks stacked
+        return (events, torch.stack(boxes), [tensor(item[2]) for item in batch],
+                torch.stack([tensor(item[3]) for item in batch]))
     return events, torch.stack(boxes)

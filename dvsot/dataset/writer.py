@@ -13,10 +13,12 @@ import numpy as np
 from dvsot import limits as validate
 from dvsot.runtime.threads import OrderedWorker
 from dvsot.dataset.boxes import interpolate_boxes, match_annotations
-from dvsot.dataset.format import COMPRESSIONS, FORMAT, FORMAT_VERSION, decode_attr, encode_attr, write_attr
+from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, attrs_problem, read_attrs, write_attr,
+                                  write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
+from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
 from dvsot.dataset.h5chunks import encode_chunk
 
@@ -36,13 +38,17 @@ class DatasetWriter:
 
     def __init__(self, path: str | os.PathLike, width: int, height: int, segment_us: int = SEGMENT_US,
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
-                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False) -> None:
+                 checksum: bool = True, t_offset_us: int = 0, annotated: bool = False,
+                 objects: list[dict] | None = None) -> None:
         if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
             raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
                              f"all, got {width}x{height}")
         if segment_us < validate.MIN_SEGMENT_US:
             raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
         self.path = Path(path)
+        problem = attrs_problem(attrs or {})
+        if problem:  # before any work: a scene's text is known before its frames are rendered
+            raise UserError(f"{self.path}: {problem}")
         if not self.path.parent.is_dir():
             raise UserError(f"{self.path}: output directory {self.path.parent} does not exist")
         self.width, self.height, self.segment_us = int(width), int(height), int(segment_us)
@@ -63,11 +69,25 @@ class DatasetWriter:
         self.annotated = bool(annotated)
         self._checksum = bool(checksum)  # Fletcher-32 per chunk: about 0.1% of size, detects flipped bits on read
         self._attrs: dict[str, Any] = dict(attrs or {})
+        # objects: the table of object ids (dvsot.events.labels.object_table); then every event carries its id
+        self._objects = None if objects is None else [dict(row) for row in objects]
+        if self._objects is not None:
+            from dvsot.events.labels import table_problem
+
+            problem = table_problem(np.array([r["id"] for r in self._objects]), [r["name"] for r in self._objects],
+                                    [r["role"] for r in self._objects])
+            if problem:
+                raise ValueError(f"object table: {problem}")
+            self._known_ids = np.zeros(256, bool)
+            self._known_ids[[r["id"] for r in self._objects]] = True
         self._file = None
         try:
             self._file = h5py.File(self.tmp_path, "w")
             ev = self._file.create_group("events")
-            for name, dtype in (("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)):
+            columns = [("x", np.uint16), ("y", np.uint16), ("t", np.int64), ("p", np.uint8)]
+            if self._objects is not None:
+                columns.append(("object", np.uint8))
+            for name, dtype in columns:
                 ev.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(_EVENT_CHUNK,),
                                   fletcher32=self._checksum, **self._filter)
         except BaseException as exc:
@@ -75,6 +95,7 @@ class DatasetWriter:
             self.__exit__(type(exc), exc, None)  # the temp removed; a full disk is one RunError line
             raise
         self._has_signal: bool | None = None
+        self._has_kind: bool | None = None
         self._buffer: list[EventBatch] = []
         self._buffered = 0
         self._count = 0
@@ -84,6 +105,7 @@ class DatasetWriter:
         self._box_t: list[np.ndarray] = []
         self._box_xywh: list[np.ndarray] = []
         self._box_vis: list[np.ndarray] = []
+        self._visibility: list[np.ndarray | None] = []
         self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
         # per gzip column, the digest of every chunk handed to HDF5, in order: the read-back compares them
         self._digests: dict[str, list[bytes]] = {}
@@ -126,6 +148,17 @@ class DatasetWriter:
         columns = [("x", batch.x, self.width), ("y", batch.y, self.height), ("p", batch.p, 2)]
         if batch.signal is not None:
             columns.append(("signal", batch.signal, 2))
+        if batch.noise_kind is not None:
+            columns.append(("noise_kind", batch.noise_kind, len(NOISE_KINDS)))
+        if (batch.object is not None) != (self._objects is not None):
+            raise ValueError("events carry object ids exactly when the writer has an object table")
+        if batch.object is not None:
+            ids = np.asarray(batch.object)
+            if ids.shape != t.shape:
+                raise ValueError(f"event object ids: {ids.shape[0]} for {n} events")
+            known = (ids >= 0) & (ids <= 255) & self._known_ids[np.clip(ids, 0, 255).astype(np.intp)]
+            if not known.all():
+                raise ValueError(f"event object id {int(ids[~known][0])} is not in the object table")
         for name, values, limit in columns:
             v = np.asarray(values)
             if v.max() >= limit or (v.dtype.kind in "if" and v.min() < 0):
@@ -141,6 +174,14 @@ class DatasetWriter:
                                                     **self._filter)
         elif self._has_signal != (batch.signal is not None):
             raise ValueError("either every event batch carries signal flags or none does")
+        if self._has_kind is None:
+            self._has_kind = batch.noise_kind is not None
+            if self._has_kind:
+                self._file["events"].create_dataset("noise_kind", shape=(0,), maxshape=(None,), dtype=np.uint8,
+                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
+                                                    **self._filter)
+        elif self._has_kind != (batch.noise_kind is not None):
+            raise ValueError("either every event batch carries noise kinds or none does")
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
         last_ms = int(t[-1] // 1000)
         if last_ms >= self._next_ms:
@@ -175,6 +216,10 @@ class DatasetWriter:
         if self._has_signal:
             columns["signal"] = joined.signal.view(np.uint8) if joined.signal.dtype == bool else \
                 joined.signal.astype(np.uint8)
+        if self._has_kind:
+            columns["noise_kind"] = joined.noise_kind.astype(np.uint8, copy=False)
+        if self._objects is not None:
+            columns["object"] = joined.object.astype(np.uint8, copy=False)
         if self._io is None:
             self._io = OrderedWorker(f"write {self.path.name}")
         self._io.submit(self._write_columns, n0, n1, columns)
@@ -218,16 +263,26 @@ class DatasetWriter:
         except OSError:
             pass
 
-    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None) -> None:
-        """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal."""
+    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None, visibility: Any = None) -> None:
+        """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal;
+        visibility (N,): visible / amodal target pixels, 0..1 (every call gives it or none does)."""
         t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
         b = np.asarray(xywh, dtype=np.float32).reshape(-1, 4)
         v = b if xywh_visible is None else np.asarray(xywh_visible, dtype=np.float32).reshape(-1, 4)
         if not (len(t) == len(b) == len(v)):
             raise ValueError("box times and rows differ in length")
+        if visibility is not None:
+            visibility = np.asarray(visibility, dtype=np.float32).reshape(-1)
+            if len(visibility) != len(t):
+                raise ValueError("box times and visibility differ in length")
+            if np.any(~((visibility >= 0) & (visibility <= 1))):
+                raise ValueError("visibility must lie in 0..1")
+        if self._visibility and (self._visibility[0] is None) != (visibility is None):
+            raise ValueError("either every box append gives visibility or none does")
         self._box_t.append(t)
         self._box_xywh.append(b)
         self._box_vis.append(v)
+        self._visibility.append(visibility)
 
     def close(self, duration_us: int | None = None) -> Path:
         """Finish the file (ms_to_idx, per-segment ground truth, attributes) and rename it into place."""
@@ -255,6 +310,11 @@ class DatasetWriter:
                 raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
             if self._count and self._last_t >= duration_us:
                 raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
+            if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
+                raise ValueError(f"box times run from {int(box_t[0])} us to {int(box_t[-1])} us, outside the file's "
+                                 f"0..{duration_us} us")
+            if duration_us < self.segment_us:
+                raise ValueError(f"a duration of {duration_us} us holds no segment of {self.segment_us} us")
             duration_ms = -(-duration_us // 1000)
             tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
             ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
@@ -286,16 +346,28 @@ class DatasetWriter:
             s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
             if self.annotated:
                 s.create_dataset("annotation", data=match, **ck)
+            if self._visibility and self._visibility[0] is not None:
+                vis = np.concatenate(self._visibility)
+                g.create_dataset("visibility", data=vis, maxshape=(None,), **ck)
+                seg_visibility = interpolate_boxes(box_t, np.repeat(vis[:, None], 4, 1), seg_t)[:, 0]
+                s.create_dataset("visibility", data=seg_visibility.astype(np.float32), **ck)
+                absent = np.isnan(seg_vis).any(axis=1) | np.isnan(seg_box).any(axis=1)
+                s.create_dataset("absent", data=absent.astype(np.uint8), **ck)
+            if self._objects is not None:
+                o = f.create_group("objects")
+                o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
+                for key in ("name", "role"):  # fixed-length UTF-8: no heap a damaged file could point into
+                    text = [str(r[key]).encode("utf-8") for r in self._objects]
+                    o.create_dataset(key, data=np.array(text, dtype=f"S{max([1, *map(len, text)])}"), **ck)
             attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
             attrs.update(self._attrs)
             attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
                          segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                         t_offset_us=self.t_offset_us,
                          ground_truth="annotations" if self.annotated else "rendered")
-            for key, value in attrs.items():
-                write_attr(f.attrs, key, encode_attr(value))
+            write_attrs(f, attrs)
             # over the values as a reader decodes them, so both sides hash the same thing
-            stored = {k: decode_attr(v) for k, v in f.attrs.items()}
-            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(stored))
+            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
             f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
             f.close()
             _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)

@@ -1,5 +1,6 @@
-"""Events: the ESIM-style simulator (simulator), its compiled kernel (kernel), the event batch (batch) and the
-frame sources `dvsot simulate` reads (frame_sources); the names callers use, each imported on first use."""
+"""Events: the ESIM-style simulator (simulator), its compiled kernel (kernel), the sensor model's stages (sensor)
+and presets (presets), the event batch (batch), object labels per event (labels) and the frame sources
+`dvsot simulate` reads (frame_sources); the names callers use, each imported on first use."""
 
 from dvsot.lazy import lazy_attributes
 

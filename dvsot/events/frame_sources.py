@@ -27,7 +27,7 @@ import numpy as np
 
 from dvsot.runtime.threads import read_ahead
 from dvsot.errors import UserError
-from dvsot.limits import file_kind_problem
+from dvsot.limits import MAX_SENSOR_PIXELS, file_kind_problem
 from dvsot.events import CodedFrame, log_intensity
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
@@ -64,6 +64,31 @@ def imread(path: Path) -> np.ndarray | None:
     """cv2.imread (any depth, channels kept) without OpenCV's warnings; None if the file cannot be decoded."""
     with _quiet_opencv():
         return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+
+
+_pillow_lock = threading.Lock()
+
+
+def image_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) in pixels from an image file's header, its pixels not decoded (Pillow; OpenEXR for .exr);
+    None when the header is not one they read (OpenCV's decoder then decides)."""
+    try:
+        if path.suffix.lower() == ".exr":
+            import OpenEXR
+
+            with OpenEXR.File(str(path), header_only=True) as f:
+                return max(p.width() for p in f.parts), max(p.height() for p in f.parts)
+        from PIL import Image
+
+        with _pillow_lock:  # decoding threads call this too; Pillow's limit is one global
+            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # the bound is ours: Pillow's hides the size
+            try:
+                with Image.open(path) as im:  # reads the header only
+                    return im.size
+            finally:
+                Image.MAX_IMAGE_PIXELS = limit
+    except Exception:  # not an image Pillow or OpenEXR knows, or a damaged header
+        return None
 
 
 def srgb_to_linear(v: np.ndarray) -> np.ndarray:
@@ -130,6 +155,9 @@ class FrameSource:
 
     def _image(self, p: Path, log_eps: float | None = None, coded: bool = False) -> np.ndarray | CodedFrame:
         """One image file as a linear-luma frame or as log intensities (on a decoding thread: OpenCV releases the GIL)."""
+        size = image_size(p)  # the header first: a frame of another size is not decoded
+        if size is not None and size != (self.width, self.height):
+            raise UserError(f"{p}: image is {size[0]}x{size[1]}, the first was {self.width}x{self.height}")
         img = imread(p)
         if img is None:
             raise UserError(f"{p}: cannot read image")
@@ -197,6 +225,10 @@ def open_frames(path: str | os.PathLike, srgb: bool = False) -> FrameSource:
         files = _image_files(p)
         if not files:
             raise UserError(f"{p}: no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in this directory")
+        size = image_size(files[0])
+        if size is not None and size[0] * size[1] > MAX_SENSOR_PIXELS:  # before decoding it
+            raise UserError(f"{files[0]}: image of {size[0]}x{size[1]} pixels, more than the bound of "
+                            f"{MAX_SENSOR_PIXELS} (8192x8192) for a frame")
         first = imread(files[0])
         if first is None:
             raise UserError(f"{files[0]}: cannot read image")

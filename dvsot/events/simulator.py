@@ -41,9 +41,10 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dvsot.errors import UserError
+from dvsot.limits import MAX_CONTRAST, MAX_DURATION_US
 from dvsot.events.batch import STRUCTURED_DTYPE, EventBatch  # noqa: F401  (re-exported: dvsot.events.EventBatch)
 
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
@@ -75,26 +76,85 @@ class EventParams(BaseModel):
     # allow_inf_nan=False: an infinite threshold or rate passes gt/ge bounds yet silently means "no events"
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    cp: float = Field(0.2, gt=0, description="ON contrast threshold C+ (log intensity)")
-    cn: float = Field(0.2, gt=0, description="OFF contrast threshold C- (log intensity)")
-    sigma_cp: float = Field(0.0, ge=0, description="per-pixel std of C+ (log intensity)")
-    sigma_cn: float = Field(0.0, ge=0, description="per-pixel std of C- (log intensity)")
-    min_threshold: float = Field(0.01, gt=0, description="lower clamp of drawn thresholds")
+    cp: float = Field(0.2, gt=0, le=MAX_CONTRAST, description="ON contrast threshold C+ (log intensity)")
+    cn: float = Field(0.2, gt=0, le=MAX_CONTRAST, description="OFF contrast threshold C- (log intensity)")
+    sigma_cp: float = Field(0.0, ge=0, le=MAX_CONTRAST, description="per-pixel std of C+ (log intensity)")
+    sigma_cn: float = Field(0.0, ge=0, le=MAX_CONTRAST, description="per-pixel std of C- (log intensity)")
+    min_threshold: float = Field(0.01, gt=0, le=MAX_CONTRAST, description="lower clamp of drawn thresholds")
     mismatch: Literal["fixed", "per_interval"] = "fixed"
-    refractory_us: float = Field(0.0, ge=0, description="refractory period, microseconds")
+    refractory_us: float = Field(0.0, ge=0, le=MAX_DURATION_US, description="refractory period, microseconds")
     log_eps: float = Field(1e-3, gt=0, description="eps in L = log(I + eps)")
-    shot_noise_hz: float = Field(0.0, ge=0, description="shot-noise events per pixel per second")
-    leak_hz: float = Field(0.0, ge=0, description="leak (ON) events per pixel per second")
+    shot_noise_hz: float = Field(0.0, ge=0, description="shot-noise events per pixel per second (in the dark)")
+    leak_hz: float = Field(0.0, ge=0, description="leak (ON) events per pixel per second (the median pixel's)")
+    # the sensor model's stages (dvsot.events.sensor), each off at its default: the ideal model
+    preset: str = Field("ideal", description="sensor model the other fields start from (dvsot.events.presets.PRESETS)")
+    linlog_intensity: float = Field(0.0, ge=0, le=1, description="intensity (1 = full scale) below which the "
+                                    "photoreceptor is linear; 0 = log everywhere")
+    lowpass_order: Literal[0, 1, 2] = Field(0, description="photoreceptor low-pass: 0 off, 1 or 2 stages")
+    lowpass_cutoff_hz: float = Field(0.0, ge=0, description="low-pass 3 dB cutoff at full-scale intensity, Hz")
+    dark_intensity: float = Field(20 / 255, gt=0, le=1, description="dark current as an intensity (1 = full scale): "
+                                  "the low-pass's bandwidth and the shot noise scale with (I + dark) / (1 + dark)")
+    shot_noise_bright_factor: float = Field(1.0, ge=0, le=100, description="shot-noise rate at full-scale intensity "
+                                            "over the rate in the dark")
+    leak_spread_decades: float = Field(0.0, ge=0, le=3, description="std of log10 of the pixels' leak rates, decades")
+    leak_period_cv: float = Field(1.0, ge=0, le=10, description="coefficient of variation of a pixel's leak periods "
+                                  "(1 = Poisson, 0 = periodic)")
+    hot_pixel_fraction: float = Field(0.0, ge=0, le=1, description="fraction of pixels that are hot")
+    hot_pixel_hz: float = Field(0.0, ge=0, description="events per second of a hot pixel (ON, Poisson)")
+    latency_us: float = Field(0.0, ge=0, le=1e6, description="delay of every event, microseconds")
+    latency_jitter_us: float = Field(0.0, ge=0, le=1e6, description="std of the delay, microseconds")
+    readout_limit_hz: float = Field(0.0, ge=0, description="events per second the readout passes; 0 = unlimited")
+    readout_fifo_events: int = Field(0, ge=0, description="events waiting for the readout before new ones are "
+                                     "dropped; 0 = none dropped, all delayed")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset(cls, values):
+        """The named preset's fields under the ones given (dvsot.events.presets.expand_preset)."""
+        from dvsot.events.presets import expand_preset
+
+        return expand_preset(values) if isinstance(values, dict) else values
+
+    @model_validator(mode="after")
+    def _stages(self) -> "EventParams":
+        if self.lowpass_order and self.lowpass_cutoff_hz <= 0:
+            raise ValueError(f"lowpass_cutoff_hz {self.lowpass_cutoff_hz:g} Hz: must be > 0 Hz with lowpass_order "
+                             f"{self.lowpass_order}")
+        if 0 < self.readout_limit_hz < 1:
+            raise ValueError(f"readout_limit_hz {self.readout_limit_hz:g} events/s: must be 0 (unlimited) or >= 1")
+        return self
 
     @classmethod
     def parse(cls, values: dict, source: str = "event parameters") -> "EventParams":
-        """Validated parameters; a bad field raises UserError naming it."""
+        """Validated parameters; a bad field raises UserError naming it, with its unit and range."""
         try:
             return cls(**values)
         except ValidationError as exc:
-            err = exc.errors()[0]
-            field = ".".join(str(p) for p in err["loc"]) or "?"
-            raise UserError(f"{source}: field '{field}': {err['msg']}") from None
+            raise UserError(f"{source}: {param_problem(exc)}") from None
+
+
+def param_problem(exc: ValidationError, names: dict[str, str] | None = None) -> str:
+    """One line for the first error of an EventParams validation: the field (or its flag in names), unit and range."""
+    err = exc.errors()[0]
+    loc = [str(p) for p in err["loc"]]
+    if not loc:  # a model-level check (a preset, the low-pass, the readout): its message names the field itself
+        msg = str(err["msg"]).removeprefix("Value error, ")
+        field = msg.split(" ", 1)[0]
+        return (names or {}).get(field, field) + msg[len(field):] if field in (names or {}) else msg
+    if names and loc[-1] in names:  # a flag: its value as given
+        return f"{names[loc[-1]]} {err.get('input')!r}: {field_message(err)}"
+    return f"field '{'.'.join(loc)}': {field_message(err)}"
+
+
+def field_message(err: dict) -> str:
+    """What an EventParams field's validation error err (pydantic's) asks for: its range and, in brackets, its unit."""
+    info = EventParams.model_fields.get(str(err["loc"][-1])) if err["loc"] else None
+    if info is None or err["type"] not in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        return str(err["msg"]).removeprefix("Value error, ")
+    bounds = [f"{op} {getattr(m, attr):g}" for m in info.metadata for attr, op in
+              (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")) if getattr(m, attr, None) is not None]
+    unit = f"; {info.description}" if info.description else ""
+    return f"{err['msg']} (range {' and '.join(bounds)}{unit})"
 
 
 class EventSimulator:
@@ -129,6 +189,18 @@ class EventSimulator:
         self._lo_lin = self._hi_lin = np.empty(0, np.float32)
         self._index: tuple = (None,)  # (table, its bucket index: dvsot.events.kernel.code_index)
         self._checked_tables: list[np.ndarray] = []
+        self._sensor = None  # the stages beyond the ideal pixel (dvsot.events.sensor), when any is on
+        self._in_sensor = False
+        from dvsot.events.presets import sensor_on
+
+        if sensor_on(self.params):
+            from dvsot.events.sensor import SensorModel
+
+            self._sensor = SensorModel(self, seed)
+
+    def sensor_counts(self) -> dict | None:
+        """The sensor model's counts (readout drops, events held after the last frame), or None for the ideal model."""
+        return None if self._sensor is None else self._sensor.counts()
 
     def _draw_thresholds(self) -> tuple[np.ndarray | float, np.ndarray | float]:
         p, n = self.params, self.width * self.height
@@ -191,6 +263,12 @@ class EventSimulator:
         caller must not change it in between (dvsot.simulate_frames hands over fresh frames).
         """
         t_us = int(t_us)
+        if self._sensor is not None and not self._in_sensor:  # the stages call back here with their filtered frame
+            self._in_sensor = True
+            try:
+                return self._sensor.step(frame, t_us, is_log)
+            finally:
+                self._in_sensor = False
         if isinstance(frame, CodedFrame):
             return self._step_coded(frame, t_us, copy)
         if not is_log and self._t_prev is not None and not self._redraws():
@@ -376,6 +454,8 @@ class EventSimulator:
         p, npix = self.params, self.width * self.height
         rng, seconds = self._rng_noise, (t1 - t0) * 1e-6
         parts = []
+        if self._sensor is not None:  # the sensor model draws its own noise
+            return _empty_crossings()
         for rate, on_only in ((p.shot_noise_hz, False), (p.leak_hz, True)):
             if rate <= 0:
                 continue

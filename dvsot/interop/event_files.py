@@ -16,11 +16,11 @@ import numpy as np
 
 from dvsot.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.errors import UserError, exception_line
+from dvsot.limits import sensor_size_problem
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
 EVT_VERSIONS = ("evt2", "evt3")
-_MAX_PIXELS = 1 << 16  # dataset files store x and y as u2
 
 
 @dataclass(frozen=True)
@@ -60,16 +60,19 @@ def parse_size(text: str, label: str = "size") -> tuple[int, int]:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"{label} {text!r}: expected WIDTHxHEIGHT, e.g. 346x260") from None
-    if not (0 < w <= _MAX_PIXELS and 0 < h <= _MAX_PIXELS):
-        raise UserError(f"{label} {text!r}: width and height must lie in 1..{_MAX_PIXELS}")
+    problem = sensor_size_problem(w, h)
+    if problem:
+        raise UserError(f"{label} {text!r}: {problem}")
     return w, h
 
 
+
 def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None,
-                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size") -> EventFile:
+                    evt_version: str = IMPORT_EVT_VERSION, size_label: str = "size", header: bool = False) -> EventFile:
     """All events of an event file, checked: time order, t >= 0, pixels on the sensor, polarity 0/1.
 
-    size: (width, height) for files that do not say; messages name it as size_label."""
+    size: (width, height) for files that do not say; messages name it as size_label. header: a CSV or TXT
+    file's first line is a header (else only dvsot's own CSV header or TXT size line is one)."""
     p = Path(path)
     kind = event_format(p, "events file")
     from dvsot.limits import file_kind_problem
@@ -80,7 +83,7 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     if kind in ("csv", "txt"):
         from dvsot.interop.text_events import read_text
 
-        t, x, y, pol, skip, file_size = read_text(p, kind)
+        t, x, y, pol, skip, file_size = read_text(p, kind, header)
         size = file_size or size
         if size is None:
             raise UserError(f"{p}: a {kind.upper()} file has no sensor size; give {size_label} WIDTHxHEIGHT")
@@ -232,8 +235,9 @@ def frame_times(path: str | os.PathLike) -> np.ndarray:
 
 def check_events(ev: EventFile) -> None:
     """Raise UserError naming the line or event of the first bad value: order, t < 0, off-sensor pixel, polarity."""
-    if not (0 < ev.width <= _MAX_PIXELS and 0 < ev.height <= _MAX_PIXELS):
-        raise UserError(f"{ev.path}: sensor size {ev.width}x{ev.height}, expected 1..{_MAX_PIXELS} a side")
+    problem = sensor_size_problem(ev.width, ev.height)
+    if problem:
+        raise UserError(f"{ev.path}: sensor size: {problem}")
     if len(ev.t) == 0:
         raise UserError(f"{ev.path}: no events")
     down = np.flatnonzero(ev.t[1:] < ev.t[:-1])
@@ -257,13 +261,15 @@ def check_events(ev: EventFile) -> None:
 
 
 def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-                     width: int, height: int, evt_version: str = EXPORT_EVT_VERSION) -> None:
-    """Write events (t us >= 0 in time order, pixels, polarity 0/1) in the format of the path's suffix."""
+                     width: int, height: int, evt_version: str = EXPORT_EVT_VERSION,
+                     objects: np.ndarray | None = None) -> None:
+    """Write events (t us >= 0 in time order, pixels, polarity 0/1) in the format of the path's suffix; objects
+    (an id per event) goes into a CSV as a fifth column, and no other format has a place for it."""
     kind = event_format(path, "output")
     if kind in ("csv", "txt"):
         from dvsot.interop.text_events import write_text
 
-        write_text(path, t, x, y, p, width, height, kind)
+        write_text(path, t, x, y, p, width, height, kind, objects)
         return
     import faery
 
@@ -275,6 +281,12 @@ def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: n
     # and t0 in the header, which faery (and Metavision) add back on reading
     faery.events_stream_from_array(a, (int(width), int(height))).to_file(
         path, version=versions[kind], zero_t0=True, file_type=kind)
+
+
+def objects_path(events_out: str | os.PathLike) -> Path:
+    """Where the object table goes beside a CSV export with object labels: OUT.csv -> OUT.objects.csv."""
+    p = Path(events_out)
+    return p.with_name(p.stem + ".objects.csv")
 
 
 def boxes_path(events_out: str | os.PathLike) -> Path:
@@ -295,7 +307,10 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
 
 def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
                    evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True) -> list[Path]:
-    """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written."""
+    """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written.
+
+    A CSV export of a file with per-event labels gets the object column and the object table in OUT.objects.csv
+    (id,name,role)."""
     from dvsot.dataset import Dataset
     from dvsot.runtime.outputs import replacing, run_outputs
 
@@ -307,14 +322,25 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
         parts = list(ds.chunks())
         track = ds.boxes()
         width, height, offset = ds.width, ds.height, ds.t_offset_us
+        table = ds.objects if event_format(out, "output") == "csv" else None
     t = np.concatenate([b.t for b in parts]) + offset if parts else np.empty(0, np.int64)
     if len(t) and t[0] < 0:
         raise UserError(f"{dataset_path}: /t_offset {offset} makes timestamps negative, which event files cannot hold")
     x, y, p = (np.concatenate([getattr(b, k) for b in parts]) if parts else np.empty(0, np.uint16) for k in "xyp")
-    with run_outputs():  # both written to temp names, renamed together when both are complete
+    objects = None
+    if table is not None:
+        objects = np.concatenate([b.object for b in parts]) if parts else np.empty(0, np.uint8)
+    with run_outputs():  # all written to temp names, renamed together when all are complete
         with replacing(out) as tmp_events:
-            write_event_file(tmp_events, t, x, y, p, width, height, evt_version)
+            write_event_file(tmp_events, t, x, y, p, width, height, evt_version, objects)
+        if table is not None:
+            import csv
+
+            with replacing(objects_path(out)) as tmp_table, open(tmp_table, "w", newline="") as fh:
+                w = csv.writer(fh, lineterminator="\n")
+                w.writerow(["id", "name", "role"])
+                w.writerows([r["id"], r["name"], r["role"]] for r in table)
         if boxes:
             with replacing(boxes_path(out)) as tmp_boxes:
                 write_box_csv(tmp_boxes, track.t + offset, track.xywh)
-    return [out] + ([boxes_path(out)] if boxes else [])
+    return [out] + ([objects_path(out)] if table is not None else []) + ([boxes_path(out)] if boxes else [])

@@ -83,10 +83,11 @@ def read_box_file(path: str | os.PathLike, width: int, height: int) -> BoxFile:
     rows, lines = _numbers(p, "boxes x,y,w,h or t_s,x,y,w,h", (4, 5))
     t = None
     if rows.shape[1] == 5:
-        if not np.isfinite(rows[:, 0]).all():
-            i = int(np.flatnonzero(~np.isfinite(rows[:, 0]))[0])
-            raise UserError(f"{p}:{lines[i]}: field t_s is {rows[i, 0]}, expected a finite time in seconds")
-        t = np.rint(rows[:, 0] * 1e6).astype(np.int64)
+        from dvsot.interop.text_events import exact_microseconds
+
+        t, bad, why = exact_microseconds(rows[:, 0], "txt")  # seconds, exact to the microsecond or refused
+        if bad is not None:
+            raise UserError(f"{p}:{lines[bad]}: {why.replace('field t ', 'field t_s ', 1)}")
         rows = rows[:, 1:]
     xywh = rows.copy()
     xywh[(xywh == 0).all(axis=1)] = np.nan  # FE108 and VisEvent write 0,0,0,0 for "no target"
@@ -118,7 +119,7 @@ def read_box_times(path: str | os.PathLike, count: int) -> np.ndarray:
     """Annotation times, one integer microsecond per line, strictly increasing, one per box."""
     p = Path(path)
     t, lines = _per_box(p, "annotation times (integer microseconds)", "annotation times", count)
-    bad = np.flatnonzero((t != np.floor(t)) | (np.abs(t) >= 2 ** 62))
+    bad = np.flatnonzero(~(t == np.floor(t)) | ~(np.abs(t) < 2 ** 53))  # NaN too; float64 holds integers to 2**53
     if len(bad):
         raise UserError(f"{p}:{lines[bad[0]]}: {t[bad[0]]:g} is not an integer number of microseconds")
     return t.astype(np.int64)
@@ -169,11 +170,13 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
                      box_times: str | os.PathLike | None = None, absent: str | os.PathLike | None = None,
                      size: tuple[int, int] | None = None, segment_us: int = SEGMENT_US,
                      evt_version: str = IMPORT_EVT_VERSION, interpolate: bool = False,
-                     labels: Mapping[str, str] | None = None, box_times_from_frames: bool = False) -> Path:
+                     labels: Mapping[str, str] | None = None, box_times_from_frames: bool = False,
+                     header: bool = False) -> Path:
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
 
     box_times_from_frames: the annotation times are the events file's AEDAT4 frame timestamps, one per box.
-    labels: how messages name the settings boxes, box_times, box_times_from_frames and size (a command's flags)."""
+    labels: how messages name the settings boxes, box_times, box_times_from_frames, size and segment_us (a
+    command's flags); header: the CSV or TXT events file's first line is a header line, not an event."""
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
@@ -181,7 +184,7 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
     if box_times and box_times_from_frames:
         raise UserError(f"{box_times}: give annotation times either as a file ({label('box_times', labels)}) or "
                         f"from the frame track ({label('box_times_from_frames', labels)}), not both")
-    ev = read_event_file(events, size, evt_version, label("size", labels))
+    ev = read_event_file(events, size, evt_version, label("size", labels), header)
     if (box_times or absent or box_times_from_frames) and not boxes:
         raise UserError(f"{box_times or absent or events}: annotation times and absent flags need a box file "
                         f"({label('boxes', labels)})")
@@ -213,6 +216,14 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
                          "absent": str(absent) if absent else None},
              "generator": "dvsot import", "versions": {"dvsot": __version__}}
     t = ev.t - origin
+    # the file covers the last event and the last box: a track's last sample, or the segment end
+    # that may score the last annotation (half a segment after it)
+    end = int(t[-1]) + 1
+    if box_t is not None:
+        end = max(end, int(box_t[-1] - origin) + (0 if interpolate else segment_us // 2))
+    if end < segment_us:
+        raise UserError(f"{events}: the recording spans {end} us, less than one segment of {segment_us} us "
+                        f"({label('segment_us', labels)}): the file would hold no segment to track")
     with DatasetWriter(out, ev.width, ev.height, segment_us, attrs=attrs, t_offset_us=origin,
                        annotated=bool(boxes) and not interpolate) as writer:
         for i in range(0, len(t), _CHUNK):
@@ -221,10 +232,5 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
                                             ev.p[s].astype(np.uint8)))
         if track is not None:
             writer.append_boxes(box_t - origin, track.xywh)
-        # the file covers the last event and the last box: a track's last sample, or the segment end
-        # that may score the last annotation (half a segment after it)
-        end = int(t[-1]) + 1
-        if box_t is not None:
-            end = max(end, int(box_t[-1] - origin) + (0 if interpolate else segment_us // 2))
         writer.close(end)
     return Path(out)

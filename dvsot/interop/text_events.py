@@ -74,13 +74,15 @@ def format_rows(fields: list[tuple[np.ndarray, int]], seps: list[bytes], end: by
 
 
 def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray,
-               width: int, height: int, kind: str) -> None:
-    """Write events (t microseconds >= 0, pixels, polarity 0/1) as 'csv' (header t,x,y,p) or 'txt' (seconds)."""
+               width: int, height: int, kind: str, objects: np.ndarray | None = None) -> None:
+    """Write events (t microseconds >= 0, pixels, polarity 0/1) as 'csv' (header t,x,y,p; with objects, the
+    object id of each event as a fifth column, t,x,y,p,object) or 'txt' (seconds; no object column)."""
     t = np.asarray(t, np.int64)
     if len(t) and t.min() < 0:
         raise ValueError("text export needs timestamps >= 0")
     with open(path, "wb") as fh:
-        fh.write(b"t,x,y,p\n" if kind == "csv" else f"{width} {height}\n".encode())
+        labelled = objects is not None and kind == "csv"
+        fh.write((b"t,x,y,p,object\n" if labelled else b"t,x,y,p\n") if kind == "csv" else f"{width} {height}\n".encode())
         if not len(t):
             return
         scratch: dict = {}
@@ -88,7 +90,10 @@ def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndar
         for i in range(0, len(t), _ROWS_PER_CHUNK):
             s = slice(i, i + _ROWS_PER_CHUNK)
             xyp = [(x[s], 0), (y[s], 0), (p[s], 0)]
-            if kind == "csv":
+            if labelled:
+                fh.write(format_rows([(t[s], 0)] + xyp + [(objects[s], 0)], [b",", b",", b",", b","],
+                                     tops=[int(t[-1])] + xyp_tops + [255], scratch=scratch))
+            elif kind == "csv":
                 fh.write(format_rows([(t[s], 0)] + xyp, [b",", b",", b","], tops=[int(t[-1])] + xyp_tops,
                                      scratch=scratch))
             else:
@@ -113,54 +118,111 @@ def line_of_row(path: Path, skip: int, row: int) -> int:
     return lines[row] if 0 <= row < len(lines) else len(lines) + skip
 
 
-def _header(path: Path, kind: str) -> tuple[int, tuple[int, int] | None]:
-    """(lines before the data, sensor size from a TXT 'width height' line or None)."""
+CSV_HEADERS = (b"t,x,y,p", b"t,x,y,p,object")  # the header lines dvsot writes (without, with labels), known without --header
+# |t| bounds under which float64 holds every microsecond exactly: CSV microseconds below 2**53, TXT seconds
+# below 2**31 (a float's spacing there is 0.24 us, so two microseconds never share a float; epoch times until 2038)
+MAX_CSV_US = 2.0 ** 53
+MAX_TXT_SECONDS = 2.0 ** 31
+
+
+def _header(path: Path, kind: str, header: bool = False) -> tuple[int, tuple[int, int] | None]:
+    """(lines before the data, sensor size from a TXT 'width height' line or None).
+
+    A CSV's first line is data unless `header` says it is not or it is dvsot's own 't,x,y,p' (or 't,x,y,p,object'): a line that
+    is neither is parsed as an event, and fails naming its line when it is not one.
+    """
     with open(path, "rb") as fh:
         first = fh.readline().split(b"#")[0].strip()
     if kind == "csv":
-        cells = first.split(b",")
-        return (1, None) if cells and not cells[0].strip().lstrip(b"-").replace(b".", b"").isdigit() else (0, None)
+        own = b"".join(first.split()).lower() in CSV_HEADERS
+        return (1 if header or own else 0), None
     cells = first.split()
     if len(cells) == 2:
         try:
             return 1, (int(cells[0]), int(cells[1]))
         except ValueError:
             raise UserError(f"{path}:1: expected 'width height' or 't x y p', got {first.decode(errors='replace')!r}") from None
-    return 0, None
+    return (1 if header else 0), None
 
 
-def read_text(path: str | os.PathLike, kind: str) -> tuple[np.ndarray, ...]:
-    """(t microseconds, x, y, p, line numbers are found on error, sensor size or None) of a CSV or TXT events file."""
+def exact_microseconds(t: np.ndarray, kind: str) -> tuple[np.ndarray, int | None, str]:
+    """Times as parsed (CSV: microseconds, TXT: seconds) as int64 microseconds, and the first row that is not
+    exact (not finite, beyond MAX_CSV_US or MAX_TXT_SECONDS, or finer than a microsecond) with why, or None and ''.
+
+    A TXT time is exact when it is the float nearest to a whole number of microseconds: the text had at
+    most six decimals (to float64's 16 significant digits).
+    """
+    t = np.asarray(t, np.float64)
+    csv = kind == "csv"
+    with np.errstate(invalid="ignore", over="ignore"):
+        us = np.rint(t if csv else t * 1e6)
+        bad_range = ~(np.abs(t) < (MAX_CSV_US if csv else MAX_TXT_SECONDS))  # NaN and infinities included
+        inexact = (us != t) if csv else (us / 1e6 != t)
+    bad = bad_range | inexact
+    if not bad.any():
+        return us.astype(np.int64), None, ""
+    i = int(np.flatnonzero(bad)[0])
+    if bad_range[i]:
+        why = ("expected a finite number of microseconds below 2**53" if csv else
+               "expected a finite number of seconds below 2**31")
+    else:
+        why = ("expected a whole number of microseconds" if csv else
+               "finer than a microsecond (at most 6 decimals); times are not rounded")
+    return np.zeros(0, np.int64), i, f"field t is {t[i]!r} {'microseconds' if csv else 's'}, {why}"
+
+
+def read_text(path: str | os.PathLike, kind: str, header: bool = False) -> tuple[np.ndarray, ...]:
+    """(t microseconds, x, y, p, lines before the data, sensor size or None) of a CSV or TXT events file.
+
+    Every line after the header is an event (blank and # lines aside): one that is not fails naming its
+    line. Times are exact or refused, never truncated or rounded; `header` skips a CSV's first line.
+    """
+    from dvsot.limits import sensor_size_problem
+
     p = Path(path)
-    skip, size = _header(p, kind)
+    skip, size = _header(p, kind, header)
+    problem = size and sensor_size_problem(*size)
+    if problem:  # before the events are read
+        raise UserError(f"{p}:1: sensor size: {problem}")
     delimiter = "," if kind == "csv" else None
-    dtype = np.int64 if kind == "csv" else np.float64
     try:
-        rows = np.loadtxt(p, delimiter=delimiter, skiprows=skip, dtype=dtype, ndmin=2, comments="#")
+        rows = np.loadtxt(p, delimiter=delimiter, skiprows=skip, dtype=np.float64, ndmin=2, comments="#")
     except ValueError as exc:
-        raise UserError(f"{p}:{_loadtxt_problem(p, skip, exc)}") from None
+        hint = "" if skip or kind != "csv" else " (a header line? give --header)"
+        raise UserError(f"{p}:{_loadtxt_problem(p, skip, exc)}{hint}") from None
     except OSError as exc:
         raise UserError(f"{p}: cannot read events ({exc.strerror or exc})") from None
     if rows.shape[0] == 0:
         raise UserError(f"{p}: no events")
+    if kind == "csv" and skip and rows.shape[1] == 5 and _csv_fields(p)[4:] == ["object"]:
+        rows = rows[:, :4]  # dvsot export's object labels: not event data, left out
     if rows.shape[1] != 4:
         raise UserError(f"{p}:{line_of_row(p, skip, 0)}: {rows.shape[1]} fields, expected 4 (t, x, y, p)")
-    t = rows[:, 0] if kind == "csv" else np.rint(rows[:, 0] * 1e6)
-    return t.astype(np.int64), rows[:, 1], rows[:, 2], rows[:, 3], skip, size
+    t, bad, why = exact_microseconds(rows[:, 0], kind)
+    if bad is not None:
+        raise UserError(f"{p}:{line_of_row(p, skip, bad)}: {why}")
+    return t, rows[:, 1], rows[:, 2], rows[:, 3], skip, size
+
+
+def _csv_fields(path: Path) -> list[str]:
+    """The names in a CSV file's header line, stripped."""
+    with open(path, "rb") as fh:
+        return [c.strip().decode(errors="replace") for c in fh.readline().split(b"#")[0].split(b",")]
 
 
 def _loadtxt_problem(path: Path, skip: int, exc: ValueError) -> str:
-    """numpy's parse error as 'LINE: what' on the file's own line numbers (numpy counts data rows from 1)."""
+    """numpy's parse error as 'LINE: what' on the file's own line numbers (numpy counts data rows from 0 in a
+    conversion error, from 1 in a changed column count)."""
     import re
 
     text = " ".join(str(exc).split())
-    row = re.search(r"row (\d+)", text)
-    line = f"{line_of_row(path, skip, int(row.group(1)) - 1)}: " if row else ""
-    changed = re.search(r"columns changed from \d+ to (\d+)", text)
+    changed = re.search(r"columns changed from \d+ to (\d+) at row (\d+)", text)
     if changed:
-        return f"{line}{changed.group(1)} fields, expected 4 (t, x, y, p)"
-    bad = re.search(r"could not convert string '([^']*)' to \w+ column (\d+)", text)
+        line = line_of_row(path, skip, int(changed.group(2)) - 1)
+        return f"{line}: {changed.group(1)} fields, expected 4 (t, x, y, p)"
+    bad = re.search(r"could not convert string '([^']*)' to \w+ at row (\d+), column (\d+)", text)
     if bad:
-        name = ("t", "x", "y", "p")[int(bad.group(2)) - 1] if int(bad.group(2)) <= 4 else bad.group(2)
-        return f"{line}field {name} is {bad.group(1)!r}, not a number"
-    return f"{line}{text}"
+        col = int(bad.group(3))
+        name = ("t", "x", "y", "p")[col - 1] if col <= 4 else str(col)
+        return f"{line_of_row(path, skip, int(bad.group(2)))}: field {name} is {bad.group(1)!r}, not a number"
+    return f" {text}"

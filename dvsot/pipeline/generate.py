@@ -13,9 +13,11 @@ import numpy as np
 
 from dvsot import __version__
 from dvsot.runtime import interrupts
-from dvsot.dataset.boxes import box_from_mask
+from dvsot.dataset.boxes import box_from_mask, mask_visibility
 from dvsot.scene import SceneConfig
+from dvsot.dataset.format import attrs_problem
 from dvsot.errors import UserError
+from dvsot.events.labels import LabelledFrame, object_table
 from dvsot.events import EventSimulator
 from dvsot.runtime.outputs import run_outputs, writing
 from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times
@@ -71,6 +73,12 @@ def sample_times(cfg: SceneConfig) -> np.ndarray:
 
 
 
+def scene_object_table(cfg: SceneConfig) -> list[dict]:
+    """The scene's object ids for the per-event labels: background 0, target 1, the scene file's objects from 2."""
+    return object_table([(o.name or f"{o.role}_{i}", o.role) for i, o in enumerate(cfg.objects)],
+                        target=cfg.target.name or "target")
+
+
 _FRAME = re.compile(r"^\d{6}\.npy$")
 
 
@@ -99,14 +107,17 @@ def _status(show: bool, text: str) -> None:
 
 
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
-             keep_frames: str | Path | None = None, preview: bool = False) -> dict:
+             keep_frames: str | Path | None = None, preview: bool = False, labels: bool = True) -> dict:
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary.
+
+    labels: each event carries the id of the object that made it (/events/object, dvsot.events.labels),
+    from the render's object-index pass.
 
     preview: also write <out_path>.gif (event frames with the box); the file, its preview and kept frames
     are renamed into place together, or none of them (dvsot.runtime.outputs).
     """
     with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
-        summary = _generate(cfg, out_path, scene_text, progress, keep_frames)
+        summary = _generate(cfg, out_path, scene_text, progress, keep_frames, labels)
         if preview:
             from dvsot.dataset.preview import PREVIEW_SEGMENTS, write_preview
 
@@ -117,7 +128,7 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
 
 
 def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress: bool,
-              keep_frames: str | Path | None) -> dict:
+              keep_frames: str | Path | None, labels: bool = True) -> dict:
     # a signal raised inside bpy's import leaves Blender half set up and the process dies of SIGSEGV at exit;
     # record it during the import and raise it after, like a signal during a render
     with interrupts.deferred():
@@ -138,6 +149,9 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
              "seed": cfg.seed, "event_seed": cfg.derived_seed("events"), "generator": "dvsot generate",
              "challenges": cfg.challenges,
              "versions": {"dvsot": __version__, "blender": blender_version(), "numpy": np.__version__}}
+    problem = attrs_problem(attrs)
+    if problem:  # before the Blender scene is built
+        raise UserError(f"{out_path}: {problem}")
     render_s = 0.0
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
     # Cycles swallows a KeyboardInterrupt raised inside its callbacks (and renders on), so SIGINT/SIGTERM
@@ -149,14 +163,14 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
             keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
         with BlenderScene(cfg) as scene:
             interrupts.check()
-            amodal, visible = [], []
+            amodal, visible, visibility = [], [], []
 
             def renders():
                 """Luma of each sample in turn; its boxes are kept for the file."""
                 nonlocal render_s, first_s
                 for i, t in enumerate(times):
                     r0 = time.perf_counter()
-                    luma, full, seen = scene.render(float(t))
+                    luma, full, seen, objects = scene.render_with_objects(float(t))
                     render_s += time.perf_counter() - r0
                     interrupts.check()  # a signal during the render: stop here
                     if i == 0:
@@ -166,11 +180,13 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                             np.save(keep / f"{i:06d}.npy", luma)
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
-                    yield luma
+                    visibility.append(mask_visibility(full, seen))
+                    yield LabelledFrame(luma, objects) if labels else luma
 
             _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
-                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible), progress=progress,
-                                       bar_after_error=False)  # the error line alone, no bar redrawn under it
+                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible, visibility), progress=progress,
+                                       bar_after_error=False,  # the error line alone, no bar redrawn under it
+                                       objects=scene_object_table(cfg) if labels else None)
             n_events, n_pos = counts.events, counts.positive
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)

@@ -344,7 +344,7 @@ def _run_dask(client, tasks, todo, manifest, retries, report) -> None:
         report(_record(manifest, todo[k], failure, final))
 
     run_tasks(client, render_task, [(tasks[i], hosts) for i in todo], retries, on_result=done, on_failure=failed,
-              failure_of=_failure, name="scene")
+              failure_of=_failure, name="scene", lease_dir=manifest.path.parent)
 
 
 def summary_line(manifest: Manifest) -> str:

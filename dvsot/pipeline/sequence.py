@@ -16,6 +16,7 @@ import numpy as np
 from dvsot.dataset import DatasetWriter
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import UserError
+from dvsot.events.labels import EventLabeller, LabelledFrame
 from dvsot.events import EventSimulator
 
 
@@ -31,16 +32,29 @@ class SimulationCounts:
 def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator, writer: DatasetWriter,
                     source: str = "frames", progress: Callable[[int, int], None] | None = None,
                     is_log: bool = False) -> SimulationCounts:
-    """Step sim through frames at t_us (microseconds) and append every event to writer; progress(frame, events)."""
+    """Step sim through frames at t_us (microseconds) and append every event to writer; progress(frame, events).
+
+    Frames given as LabelledFrame (all of them or none) label each event with its object (dvsot.events.labels).
+    """
     from dvsot.runtime import interrupts
 
     n_pos, n = 0, 0
+    labeller: EventLabeller | None = None
     for i, frame in enumerate(frames):
         interrupts.check()  # a signal whose exception a callback swallowed stops the run here
         if i >= len(t_us):
             raise UserError(f"{source}: more frames than the {len(t_us)} timestamps")
+        labelled = isinstance(frame, LabelledFrame)
+        if i == 0 and labelled:
+            labeller = EventLabeller(sim.width, sim.height)
+        elif labelled != (labeller is not None):
+            raise UserError(f"{source}: frame {i}: either every frame comes with object labels or none does")
         try:
-            batch = sim.step(frame, int(t_us[i]), is_log=is_log, copy=False)  # frames are ours to keep
+            if labelled:
+                batch = labeller.label(sim.step(frame.frame, int(t_us[i]), is_log=is_log, copy=False),
+                                       frame.objects, int(t_us[i]))
+            else:
+                batch = sim.step(frame, int(t_us[i]), is_log=is_log, copy=False)  # frames are ours to keep
         except UserError as exc:
             raise UserError(f"{source}: frame {i}: {exc}") from None
         writer.append_events(batch)
@@ -51,21 +65,23 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
     return SimulationCounts(n, writer.num_events, n_pos)
 
 
-BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)]): box samples for DatasetWriter.append_boxes
+BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)[, visibility (N,)]]): DatasetWriter.append_boxes
 
 
 def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,
                    attrs: dict, segment_us: int = SEGMENT_US, *, source: str = "frames", is_log: bool = False,
                    boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
-                   desc: str | None = None, bar_after_error: bool = True) -> tuple[Path, SimulationCounts]:
+                   desc: str | None = None, bar_after_error: bool = True,
+                   objects: list[dict] | None = None) -> tuple[Path, SimulationCounts]:
     """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.
 
     The frames -> events -> file loop of `dvsot generate` and `dvsot simulate`. boxes() is called once
     every frame is consumed, so a renderer may collect its boxes while it yields frames. The file is
     renamed into place only when complete (DatasetWriter); on any error nothing is left behind, and the
     progress bar stays on screen unless bar_after_error is False (then the error line stands alone).
+    objects: the object table (dvsot.events.labels.object_table) when the frames are LabelledFrames.
     """
-    with DatasetWriter(path, sim.width, sim.height, segment_us, attrs) as writer:
+    with DatasetWriter(path, sim.width, sim.height, segment_us, attrs, objects=objects) as writer:
         bar = shown = None
         if progress:  # tqdm's import is a tenth of `dvsot simulate`'s start-up: only for the bar
             from tqdm import tqdm
@@ -90,5 +106,8 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
         rows = boxes() if boxes is not None else None
         if rows is not None:
             writer.append_boxes(*rows)
+        sensor = sim.sensor_counts()
+        if sensor is not None:  # what the readout dropped and what was still delayed past the last frame
+            writer.set_attrs(sensor_counts=sensor)
         out = writer.close(int(t_us[-1]) + 1)
     return out, counts

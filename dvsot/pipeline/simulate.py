@@ -77,6 +77,13 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     t0 = int(t_us[0])
     t_us = t_us - t0
     box_rows = read_box_csv(boxes, t0, source.width, source.height) if boxes else None
+    if box_rows is not None and not (0 <= box_rows[0][0] and box_rows[0][-1] <= t_us[-1]):
+        raise UserError(f"{boxes} ({label('boxes', labels)}): box times run from {box_rows[0][0] / 1e6:g} s to "
+                        f"{box_rows[0][-1] / 1e6:g} s after the first frame, outside the frames' "
+                        f"0..{t_us[-1] / 1e6:g} s")
+    if int(t_us[-1]) + 1 < segment_us:
+        raise UserError(f"{frames}: the frames span {int(t_us[-1]) + 1} us, less than one segment of {segment_us} us "
+                        f"({label('segment_us', labels)}): the file would hold no segment to track")
 
     sim = EventSimulator(source.width, source.height, params, seed)
     attrs = {"name": Path(output).name.removesuffix(".h5"), "split": "", "source": str(frames),
@@ -90,8 +97,10 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     wall = time.perf_counter() - start
     duration = (int(t_us[-1]) + 1) / 1e6
     n_events = counts.events
-    return {"output": str(path), "frames": source.count, "resolution": f"{source.width}x{source.height}",
-            "duration_s": round(duration, 6), "events": n_events,
-            "event_rate_per_s": round(n_events / duration, 1),
-            "positive_fraction": round(counts.positive / n_events, 4) if n_events else None,
-            "wall_s": round(wall, 3)}
+    summary = {"output": str(path), "frames": source.count, "resolution": f"{source.width}x{source.height}",
+               "duration_s": round(duration, 6), "events": n_events,
+               "event_rate_per_s": round(n_events / duration, 1),
+               "positive_fraction": round(counts.positive / n_events, 4) if n_events else None,
+               "wall_s": round(wall, 3)}
+    sensor = sim.sensor_counts()
+    return summary if sensor is None else {**summary, "preset": params.preset, **sensor}

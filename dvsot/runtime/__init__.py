@@ -1,2 +1,2 @@
 """How a run runs: outputs written atomically (outputs, staging), signals (interrupts), background threads
-(threads), worker processes and Dask tasks (worker_pool, dask_tasks)."""
+(threads), the task runner on Dask (dask_tasks) and its local worker processes (local_workers)."""

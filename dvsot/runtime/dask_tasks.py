@@ -4,6 +4,11 @@ One loop serves every command that runs on a cluster (`dvsot generate`, `dvsot b
 `run_tasks` submits one task per call, takes each result as it completes (`as_completed`), records a failure
 (the task raised, returned a failure, or its worker died) as one line and resubmits it, on a worker not yet
 tried while there is one, up to `retries` times, while the other tasks go on.
+
+`local:N` runs N worker processes of this process (dvsot.runtime.local_workers: they die with it and stop quietly);
+`generate --jobs N` and `bench --jobs N` are `local:N`. A run whose tasks write files holds a lease in its
+output directory (dvsot.runtime.staging.RunLease): when the run stops here (an interrupt, an error), the lease is
+revoked before anything is reported, so no task of it commits afterwards, and its queued tasks are cancelled.
 """
 
 from __future__ import annotations
@@ -11,10 +16,13 @@ from __future__ import annotations
 import logging
 import os
 import uuid
+import weakref
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 from dvsot.errors import RunError, UserError, exception_line
+from dvsot.limits import MAX_WORKERS
 
 
 @dataclass(frozen=True)
@@ -23,6 +31,8 @@ class Failure:
 
     error: str
     worker: str | None = None
+    kind: str | None = None  # "user" (bad input, dvsot.errors.UserError), "run" (RunError), "interrupted", None
+    message: str | None = None  # a UserError's or RunError's own message, raised again as such here
 
 
 def parse_scheduler(spec: str, label: str = "scheduler") -> tuple[str, int | str]:
@@ -31,13 +41,16 @@ def parse_scheduler(spec: str, label: str = "scheduler") -> tuple[str, int | str
     label: how the message names the setting (a command passes its flag)."""
     if spec.startswith("local:"):
         n = spec.removeprefix("local:")
-        if not n.isdigit() or not 1 <= int(n) <= 256:
-            raise UserError(f"{label} local:N needs N, a number of worker processes in 1..256, got {spec!r}")
+        if not n.isdigit() or not 1 <= int(n) <= MAX_WORKERS:
+            raise UserError(f"{label} local:N needs N, a number of worker processes in 1..{MAX_WORKERS} (the bound), "
+                            f"got {spec!r}")
         return "local", int(n)
     scheme, _, rest = spec.partition("://")
     host, _, port = rest.rpartition(":")
     if scheme not in ("tcp", "tls", "ws", "wss") or not host or not port.isdigit():
         raise UserError(f"{label} must be local:N or tcp://HOST:PORT, got {spec!r}")
+    if not 1 <= int(port) <= 65535:
+        raise UserError(f"{label} {spec!r}: port {int(port)} is not a TCP port (1..65535)")
     return "address", spec
 
 
@@ -51,40 +64,85 @@ def worker_address() -> str:
         return f"pid {os.getpid()}"
 
 
-class Cluster:
-    """`with Cluster(spec) as client`: a Client on a new LocalCluster of single-threaded worker processes
-    (local:N, closed at the end) or on a running scheduler (tcp://HOST:PORT)."""
+_LOCAL: "weakref.WeakSet" = weakref.WeakSet()  # clients of local:N clusters: their workers share this machine
 
-    def __init__(self, spec: str) -> None:
+
+def lease_home(client, lease_dir: str | os.PathLike) -> Path:
+    """Where a run's lease goes: this machine's temp directory for local:N (a killed run leaves nothing in the
+    output directory), else `lease_dir`, which every worker sees at the same path."""
+    if client in _LOCAL:
+        import tempfile
+
+        from dvsot.runtime.staging import clean_stale
+
+        home = Path(tempfile.gettempdir()) / "dvsot-runs"
+        home.mkdir(mode=0o700, exist_ok=True)
+        clean_stale(home)  # leases of killed runs
+        return home
+    return Path(lease_dir)
+
+
+class Cluster:
+    """`with Cluster(spec) as client`: a Client on a new local scheduler with N single-threaded worker processes
+    of this process (local:N, all ended at the end) or on a running scheduler (tcp://HOST:PORT)."""
+
+    def __init__(self, spec: str, start_timeout_s: float = 120.0) -> None:
         self.spec = spec
         self.kind, self.arg = parse_scheduler(spec)
+        self.start_timeout_s = start_timeout_s
         self.cluster = self.client = None
+        self.procs: list = []
 
     def __enter__(self):
-        from distributed import Client, LocalCluster
+        from distributed import Client
 
         if self.kind == "local":
             try:
-                self.cluster = LocalCluster(n_workers=self.arg, threads_per_worker=1, processes=True,
-                                            dashboard_address=None,
-                                            silence_logs=logging.CRITICAL)  # failures are reported, one line each
-            except (RuntimeError, OSError, TimeoutError) as exc:
-                raise RunError(f"scheduler local:{self.arg}: the worker processes did not start "
-                               f"({exception_line(exc, 300)})") from None
-            self.client = Client(self.cluster)
+                self._start_local()
+            except BaseException as exc:
+                self.__exit__(None, None, None)
+                if isinstance(exc, (RuntimeError, OSError, TimeoutError)):
+                    raise RunError(f"scheduler local:{self.arg}: the worker processes did not start "
+                                   f"({exception_line(exc, 300)})") from None
+                raise
         else:
             try:
                 self.client = Client(self.arg, timeout="20s")
             except (OSError, TimeoutError) as exc:
                 raise UserError(f"scheduler {self.arg}: cannot reach the scheduler "
-                                f"({exception_line(exc, 300)})") from None
+                                 f"({exception_line(exc, 300)})") from None
         return self.client
 
+    def _start_local(self) -> None:
+        from distributed import Client, LocalCluster
+
+        from dvsot.runtime import local_workers as localworkers
+
+        # the scheduler here, no workers of its own: they are this process's children (dvsot.runtime.local_workers)
+        self.cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1", scheduler_port=0,
+                                    dashboard_address=None, silence_logs=logging.CRITICAL,
+                                    # its HTTP server (health, metrics) on a free port: 8787 may be another's
+                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+        self.client = Client(self.cluster)
+        _LOCAL.add(self.client)
+        self.procs = localworkers.start(self.cluster.scheduler_address, self.arg)
+        try:
+            self.client.wait_for_workers(self.arg, timeout=self.start_timeout_s)
+        except TimeoutError:
+            dead = [p.returncode for p in self.procs if p.poll() is not None]
+            raise RuntimeError(f"{len(workers(self.client))} of {self.arg} joined in {self.start_timeout_s:g} s"
+                               + (f"; {len(dead)} exited (status {dead[0]})" if dead else "")) from None
+
     def __exit__(self, *exc) -> None:
-        if self.client is not None:
-            self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        from dvsot.runtime import local_workers as localworkers
+
+        try:
+            if self.client is not None:
+                self.client.close()
+        finally:
+            localworkers.stop(self.procs)  # each running task unwinds (temps removed) before its process exits
+            if self.cluster is not None:
+                self.cluster.close()
 
 
 def workers(client) -> list[str]:
@@ -106,12 +164,28 @@ def host_workers(client) -> dict[str, int]:
     return counts
 
 
-def _guarded(fn: Callable, *args) -> Any:
-    """fn(*args) in a worker; an exception comes back as a Failure (no traceback in the worker's log)."""
+def _guarded(lease: str | None, fn: Callable, *args) -> Any:
+    """fn(*args) in a worker, under its run's lease if it has one (dvsot.runtime.staging.LeaseGuard); an exception, an
+    interrupt included, comes back as a Failure (no traceback in the worker's log)."""
+    from dvsot.runtime import interrupts, local_workers as localworkers
+    from dvsot.errors import RunError
+    from dvsot.runtime.staging import LeaseGuard
+
+    guard = LeaseGuard(lease) if lease is not None else None
+    localworkers.task_started()
     try:
-        return fn(*args)
+        with interrupts.guarded(guard):
+            interrupts.check()  # a run stopped before this task began: nothing to do
+            return fn(*args)
+    except interrupts.Interrupted as exc:
+        return Failure(f"interrupted ({exc.why})", worker_address(), "interrupted")
     except Exception as exc:
-        return Failure(exception_line(exc, 300), worker_address())
+        kind = "user" if isinstance(exc, UserError) else "run" if isinstance(exc, RunError) else None
+        return Failure(exception_line(exc, 300), worker_address(), kind, str(exc) if kind else None)
+    finally:
+        if guard is not None:
+            guard.close()
+        localworkers.task_ended()
 
 
 def _failure_of(result: Any) -> Failure | None:
@@ -122,26 +196,51 @@ def run_tasks(client, fn: Callable, calls: list[tuple], retries: int = 0,
               on_result: Callable[[int, Any], None] | None = None,
               on_failure: Callable[[int, Failure, bool], None] | None = None,
               failure_of: Callable[[Any], Failure | None] = _failure_of,
-              stop_on_failure: bool = False, name: str = "task", where: str = "") -> list:
+              stop_on_failure: bool = False, name: str = "task", where: str = "",
+              lease_dir: str | os.PathLike | None = None) -> list:
     """fn(*calls[k]) for every k, one Dask task each; results in call order, a Failure where a call finally failed.
 
     Results are taken as they finish: on_result(k, result) for a success, on_failure(k, failure, final) for a
     failed attempt (failure_of(result) says whether a returned result is one). A failed call is resubmitted,
     preferring a worker it has not run on, until it has failed retries + 1 times. stop_on_failure: the first
-    failure cancels every other task and is raised as one RunError line (naming `where`, else the scheduler).
+    failure cancels every other task and is raised as one line (naming `where`, else the scheduler): the task's
+    own UserError or RunError, else a RunError.
+    lease_dir: the directory the tasks write into (the same path on every worker): the run's lease goes there
+    (on local:N, in this machine's temp directory), and once this call ends, by an exception (an interrupt included) or not, no task of it commits anything.
     """
+    from dvsot.runtime.staging import RunLease
+
+    lease = RunLease(lease_home(client, lease_dir)) if lease_dir is not None else None
+    pending: dict = {}
+    try:
+        return _run_tasks(client, fn, calls, retries, on_result, on_failure, failure_of, stop_on_failure, name,
+                          where, str(lease.path) if lease else None, pending)
+    finally:
+        from dvsot.runtime import interrupts
+
+        with interrupts.deferred():  # a second Ctrl-C waits: the lease must go, whatever comes next
+            if lease is not None:
+                lease.revoke()
+            if pending:
+                try:
+                    client.cancel([f for _, _, f in pending.values()], force=True)
+                except Exception:  # a scheduler already gone: its workers stop with it
+                    pass
+
+
+def _run_tasks(client, fn, calls, retries, on_result, on_failure, failure_of, stop_on_failure, name, where, lease,
+               pending) -> list:
     from distributed import as_completed
 
     results: list = [None] * len(calls)
     run = uuid.uuid4().hex[:8]  # keys unique across runs on one long-lived cluster
     tried: list[set] = [set() for _ in calls]
-    pending: dict = {}
     done = as_completed()
 
     def submit(k: int, attempt: int) -> None:
         others = [w for w in workers(client) if w not in tried[k]] if tried[k] else []
         # a strict restriction to the untried workers (a loose one lands wherever is free first)
-        fut = client.submit(_guarded, fn, *calls[k], pure=False, key=f"{name}-{run}-{k}-{attempt}",
+        fut = client.submit(_guarded, lease, fn, *calls[k], pure=False, key=f"{name}-{run}-{k}-{attempt}",
                             workers=others or None)
         pending[fut.key] = (k, attempt, fut)
         done.add(fut)
@@ -162,8 +261,10 @@ def run_tasks(client, fn: Callable, calls: list[tuple], retries: int = 0,
                 on_result(k, result)
             continue
         if stop_on_failure:
-            client.cancel([f for _, _, f in pending.values()])
-            raise RunError(f"{name} {k + 1} of {len(calls)} failed on {where or client.scheduler.address}: "
+            if failure.kind == "user":
+                raise UserError(failure.message or failure.error)
+            raise RunError(failure.message if failure.kind == "run" and failure.message else
+                           f"{name} {k + 1} of {len(calls)} failed on {where or client.scheduler.address}: "
                            f"{failure.error}")
         final = attempt > retries
         if on_failure is not None:
@@ -176,11 +277,14 @@ def run_tasks(client, fn: Callable, calls: list[tuple], retries: int = 0,
 
 
 def map_tasks(scheduler: str, fn: Callable, calls: list[tuple],
-              on_result: Callable[[int, Any], None] | None = None) -> list:
+              on_result: Callable[[int, Any], None] | None = None,
+              lease_dir: str | os.PathLike | None = None) -> list:
     """fn(*call) for every call on a new client of `scheduler` (local:N or tcp://HOST:PORT); results in call order.
 
     Results are taken as they finish (on_result(k, result) for each); a task that raised, or whose worker
-    died, is one RunError line and the rest are cancelled.
+    died, is one line (its UserError or RunError as such, else a RunError) and the rest are cancelled.
+    lease_dir: where the tasks write, if they do (run_tasks).
     """
     with Cluster(scheduler) as client:
-        return run_tasks(client, fn, calls, on_result=on_result, stop_on_failure=True, name="task", where=scheduler)
+        return run_tasks(client, fn, calls, on_result=on_result, stop_on_failure=True, name="task", where=scheduler,
+                         lease_dir=lease_dir)

@@ -3,7 +3,8 @@
 Blender's Python callbacks swallow exceptions: a KeyboardInterrupt raised inside a Cycles render is
 printed and the render carries on. Inside `deferred()` the handler only records the signal; `check()`
 (called between frames) and the block's end raise it. A worker process also treats the death of its
-parent as an interrupt (`set_parent`).
+parent as an interrupt (`set_parent`), and a task of a run whose parent has stopped it (`guarded`: the run's
+lease, dvsot.runtime.staging.RunLease) as one too, so that `check()` and every commit refuse to go on.
 """
 
 from __future__ import annotations
@@ -12,8 +13,9 @@ import os
 import signal
 import sys
 import threading
-from contextlib import contextmanager
-from typing import Iterator
+from contextlib import contextmanager, nullcontext
+from contextvars import ContextVar
+from typing import ContextManager, Iterator, Protocol
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -46,10 +48,15 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
-_state = {"depth": 0, "pending": None, "parent": None, "raised": None}
+_state = {"depth": 0, "pending": None, "parent": None, "raised": None, "seen": None, "last": False,
+          "finished": False, "late": None}
 
 
 def _handler(signum: int, frame) -> None:
+    if _state["finished"]:  # the run's final renames have begun: it completes, and says the signal came late
+        _state["late"] = _state["late"] or signum
+        return
+    _state["seen"] = _state["seen"] or signum
     if _state["depth"]:
         _state["pending"] = _state["pending"] or signum  # the first one wins; raised at check() or the block's end
         return
@@ -63,13 +70,50 @@ def install() -> list:
     """Make SIGINT and SIGTERM raise `Interrupted` (main thread only); the previous handlers, for `restore`."""
     if threading.current_thread() is not threading.main_thread():
         return []
-    _state["raised"] = None  # a new run: an earlier one's interrupt was its own
+    _reset()  # a new run: an earlier one's interrupt was its own
     saved = [(s, signal.getsignal(s)) for s in SIGNALS]
     for s in SIGNALS:
         signal.signal(s, _handler)
     saved.append(("unraisable", sys.unraisablehook))
     sys.unraisablehook = _unraisable
     return saved
+
+
+def _reset() -> None:
+    _state.update(raised=None, seen=None, last=False, finished=False, late=None)
+
+
+def seen() -> int | None:
+    """The first signal this run received and raised (whatever exception it turned into on its way), else None."""
+    return _state["seen"]
+
+
+@contextmanager
+def last_step() -> Iterator[None]:
+    """The block is the command's last step: once its final commit starts renaming (`finish`), the run has completed,
+    and a signal from then on is reported as late (`late()`) instead of interrupting it."""
+    _state["last"] = True
+    try:
+        yield
+    finally:
+        _state["last"] = False
+
+
+def finish() -> None:
+    """Called as a commit starts its renames: inside `last_step()`, the run is complete from here on."""
+    if _state["last"]:
+        _state["finished"] = True
+
+
+def late() -> int | None:
+    """A signal that arrived after the run's final renames had begun (the run completed), else None."""
+    return _state["late"]
+
+
+def quiet_exit() -> None:
+    """After a run was reported interrupted: what libraries' clean-up raises as the process ends (a half-written
+    video writer's __del__, an atexit callback) is the interrupt's consequence, not printed."""
+    sys.unraisablehook = lambda info: None
 
 
 def _unraisable(info) -> None:
@@ -86,7 +130,7 @@ def restore(saved: list) -> None:
             sys.unraisablehook = h
         else:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
-    _state["raised"] = None
+    _reset()
 
 
 def set_parent(pid: int) -> None:
@@ -99,15 +143,52 @@ def parent_gone() -> bool:
     return _state["parent"] is not None and os.getppid() != _state["parent"]
 
 
+def note(signum: int) -> None:
+    """Record a signal for the next `check()` without raising (a handler that must not unwind its own thread)."""
+    _state["raised"] = _state["raised"] or int(signum)
+
+
+class Guard(Protocol):
+    """What a task checks before each step and around each commit: whether its run still wants it."""
+
+    def problem(self) -> str | None: ...
+
+    def committing(self) -> ContextManager[None]: ...
+
+
+_guard: ContextVar[Guard | None] = ContextVar("dvsot_run_guard", default=None)
+
+
+@contextmanager
+def guarded(guard: Guard | None) -> Iterator[None]:
+    """Inside the block (one task), `check()` also raises once `guard` reports a problem (its run was stopped)."""
+    token = _guard.set(guard)
+    try:
+        yield
+    finally:
+        _guard.reset(token)
+
+
+def committing() -> ContextManager[None]:
+    """Around a commit's renames: the guard of this task's run held (its parent cannot stop the run meanwhile)."""
+    guard = _guard.get()
+    return guard.committing() if guard is not None else nullcontext()
+
+
 def check() -> None:
-    """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, or this
-    worker's parent died."""
+    """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, this
+    worker's parent died, or the run of this task was stopped."""
     pending = _state["pending"] or _state["raised"]
     if pending:
         _state["pending"] = _state["raised"] = None
         raise Interrupted(pending)
     if parent_gone():
         raise Interrupted(signal.SIGTERM, "parent process died")
+    guard = _guard.get()
+    if guard is not None:
+        why = guard.problem()
+        if why is not None:
+            raise Interrupted(signal.SIGTERM, why)
 
 
 @contextmanager

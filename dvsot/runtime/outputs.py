@@ -8,6 +8,11 @@
   is renamed into place together when the block ends, or none is. The renames run with SIGINT/SIGTERM
   deferred, after a journal naming them all is on disk, so a SIGKILL midway is completed by the next
   run; a manifest (the journal, complete) written last names the run and each file's SHA-256.
+* `run_outputs(manifest, whole=True)`: the manifest's directory holds this run's files only: what the
+  previous run's manifest names and this run does not write is removed in the same commit;
+  `run_dir(root, flag, writes)` checks before any work that the directory holds no one else's files and
+  that every path the run writes under it can be made (no file where a directory goes), and removes
+  the temps dead processes left anywhere in it.
 * A symlink given as an output is written through: the temp goes beside the link's target and the
   rename replaces the target; the link stays.
 * Writing errors from the operating system (a full disk, a file system gone read-only) become one
@@ -42,7 +47,15 @@ _SHORT_WRITE = re.compile(r"\b\d+ requested and \d+ written\b")
 def target(path: str | os.PathLike) -> Path:
     """Where writing `path` lands: the path itself, or the end of its chain of symlinks."""
     p = Path(path)
-    return Path(os.path.realpath(p)) if p.is_symlink() else p
+    if not p.is_symlink():
+        return p
+    try:
+        return Path(os.path.realpath(p, strict=True))
+    except FileNotFoundError:  # a dangling link: writing creates the file it names
+        return Path(os.path.realpath(p))
+    except OSError as exc:  # a loop: it names no file, and writing would replace a link
+        raise UserError(f"{p}: a symbolic link that leads to no file ({exc.strerror or exc}); "
+                        f"remove it or name another output") from None
 
 
 def check_writable(directory: str | os.PathLike, what: str) -> None:
@@ -80,6 +93,8 @@ def output_file(path: str | Path, flag: str, inputs: Iterable[str | Path] = ()) 
 def output_dir(path: str | Path, flag: str) -> Path:
     """`path` as a directory a command may write into (made later, when there is output): not a file, writable."""
     p = Path(path)
+    if p.is_symlink() and not p.exists():  # a loop or a dangling link: no directory can be made there
+        raise UserError(f"{p}: {flag} is a symbolic link that leads to no directory; remove it or name another")
     if p.exists() and not p.is_dir():
         raise UserError(f"{p}: {flag} names a file, not a directory")
     for parent in [p, *p.parents]:
@@ -91,6 +106,63 @@ def output_dir(path: str | Path, flag: str) -> Path:
                 staging.clean_stale(p)
             break
     return p
+
+
+def previous_files(manifest: Path) -> set[str]:
+    """The files (relative to its directory) an earlier run's manifest names; empty if there is none."""
+    import json
+
+    try:
+        data = json.loads(Path(manifest).read_text())
+    except (OSError, ValueError):
+        return set()
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not isinstance(data.get("files"), dict):
+        return set()
+    return {str(k) for k in data["files"]}
+
+
+def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest: str = "run.json",
+            depth: int = 4) -> Path:
+    """Check the directory a run owns whole (see run_outputs(whole=True)) before any work.
+
+    Every path in `writes` (relative to root, or under it) can be written: each directory on its way is a
+    directory or missing, the path itself no directory. Temps of dead processes anywhere in the tree (down to
+    `depth` levels) are removed (completing their commits); files that neither the previous run's manifest
+    names nor this run writes are refused (another run's, or the user's).
+    """
+    root = output_dir(root, flag)
+    rel = {Path(os.path.relpath(Path(root) / w, root)) for w in writes}
+    for r in sorted(rel):
+        if r.parts[0] == "..":
+            raise ValueError(f"{r}: not under {root}")
+        for k in range(1, len(r.parts) + 1):
+            p = Path(root, *r.parts[:k])
+            if k < len(r.parts) and (p.exists() or p.is_symlink()) and not p.is_dir():
+                raise UserError(f"{p}: {flag}: a file where the directory of {Path(root, r)} goes")
+            if k == len(r.parts) and p.is_dir():
+                raise UserError(f"{p}: {flag}: a directory where this run writes a file")
+    if not root.is_dir():
+        return root
+    for d, dirs, _ in os.walk(root):
+        if len(Path(d).relative_to(root).parts) >= depth:
+            dirs[:] = []
+        staging.clean_stale(d)
+        if d != str(root):
+            check_writable(d, f"{d}: {flag}")
+    known = previous_files(root / manifest) | {str(r) for r in rel} | {manifest}
+    strangers = []
+    for d, dirs, files in os.walk(root):
+        for name in files + [x for x in dirs if os.path.islink(os.path.join(d, x))]:
+            r = os.path.relpath(os.path.join(d, name), root)
+            if r not in known and not staging.is_temp(name):
+                strangers.append(r)
+        if len(strangers) > 3:
+            break
+    if strangers:
+        raise UserError(f"{root}: {flag} holds files that are not an earlier run's of this command "
+                        f"({', '.join(sorted(strangers)[:3])}{' ...' if len(strangers) > 3 else ''}): it holds one "
+                        "run's files only; choose another directory or empty this one")
+    return root
 
 
 def disk_error(exc: BaseException) -> str | None:
@@ -141,7 +213,8 @@ def _fsync(path: Path) -> None:
 class RunOutputs:
     """The outputs of one run: each staged as a temp beside its target, all renamed together by `commit()`."""
 
-    def __init__(self, manifest: str | os.PathLike | None = None) -> None:
+    def __init__(self, manifest: str | os.PathLike | None = None, whole: bool = False) -> None:
+        self.whole = whole and manifest is not None
         self.token = staging.new_token()
         self.run_id = f"{staging.host()}-{os.getpid()}-{self.token}"
         self.manifest = Path(manifest) if manifest is not None else None
@@ -188,13 +261,16 @@ class RunOutputs:
     def abort(self) -> None:
         """Remove every staged temp; nothing at any target is touched."""
         for e in self._entries.values():
-            staging._remove(Path(e["staged"]))
+            if e["staged"]:
+                staging._remove(Path(e["staged"]))
         self._entries.clear()
 
     def _manifest_body(self, journal: Path) -> dict:
         root = self.manifest.parent if self.manifest else journal.parent
         files = {}
         for final, e in self._entries.items():
+            if e["kind"] == "gone":
+                continue
             rel = os.path.relpath(final, root)
             staged = Path(e["staged"])
             files[rel] = ({"kind": "dir", "files": sum(1 for _ in staged.rglob("*"))} if e["kind"] == "dir" else
@@ -209,12 +285,19 @@ class RunOutputs:
         missing = [str(f) for f, e in self._entries.items() if not e["ready"]]
         if missing:
             raise RuntimeError(f"staged outputs never completed: {', '.join(missing)}")
+        if self.whole:  # the previous run's files this run does not write go in the same commit
+            root = target(self.manifest).parent
+            for rel in sorted(previous_files(self.manifest)):
+                final = target(root / rel)
+                if final not in self._entries and final != target(self.manifest) and os.path.lexists(root / rel):
+                    self._entries[final] = {"staged": None, "kind": "gone", "old": str(root), "ready": True}
         interrupts.check()  # a signal or a dead parent before the commit: nothing is replaced
-        entries = [{"final": str(f), "staged": str(e["staged"]), "kind": e["kind"],
+        entries = [{"final": str(f), "staged": str(e["staged"]) if e["staged"] else None, "kind": e["kind"],
                     "old": str(e["old"]) if e["old"] else None} for f, e in self._entries.items()]
         if len(entries) == 1 and entries[0]["kind"] == "file" and self.manifest is None:
-            with interrupts.deferred():
+            with interrupts.deferred(), interrupts.committing():  # a task's run, stopped meanwhile, refuses
                 interrupts.check()
+                interrupts.finish()  # a command's last step is complete from here on
                 os.replace(entries[0]["staged"], entries[0]["final"])  # one rename is atomic: no journal needed
                 self._entries.clear()
             return
@@ -224,16 +307,18 @@ class RunOutputs:
         for e in entries:
             if e["kind"] == "file":
                 _fsync(Path(e["staged"]))
+        entries.sort(key=lambda e: e["kind"] == "gone")  # the new files first, then the old ones go
         body = self._manifest_body(journal)
-        dirs = sorted({str(Path(e["final"]).parent) for e in entries} - {str(home)})
+        dirs = sorted({str(Path(e["final"]).parent) for e in entries if e["kind"] != "gone"} - {str(home)})
         pointers = [staging.temp_name(Path(d) / journal.name, "commit", token=self.token, suffix=".json")
                     for d in dirs]
         body.update(entries=entries, pointers=[str(p) for p in pointers],
                     manifest=str(self.manifest) if self.manifest else None)
         written = []
         try:
-            with interrupts.deferred():
+            with interrupts.deferred(), interrupts.committing():
                 interrupts.check()
+                interrupts.finish()
                 for p in pointers:  # other directories' temps belong to this commit once the journal exists
                     staging.write_json(p, {"journal": str(journal)}, self.token)
                     written.append(p)
@@ -259,17 +344,19 @@ def current_run() -> RunOutputs | None:
 
 
 @contextmanager
-def run_outputs(manifest: str | os.PathLike | None = None) -> Iterator[RunOutputs]:
+def run_outputs(manifest: str | os.PathLike | None = None, whole: bool = False) -> Iterator[RunOutputs]:
     """All outputs staged in the block are committed together at its end (or removed on an exception).
 
     `manifest`: where to write the run's manifest (JSON: run id, each file's size and SHA-256); None
-    writes none (the journal still makes the commit all-or-nothing). Nested blocks join the outer run.
+    writes none (the journal still makes the commit all-or-nothing). `whole`: the manifest's directory is
+    this run's alone: the files the previous manifest there names and this run does not write are removed
+    by the commit (check it first with `run_dir`). Nested blocks join the outer run.
     """
     outer = _current.get()
     if outer is not None:
         yield outer
         return
-    run = RunOutputs(manifest)
+    run = RunOutputs(manifest, whole)
     token = _current.set(run)
     try:
         yield run

@@ -6,21 +6,34 @@ several outputs first writes a journal `.<name>.commit~<host>~<pid>~<token>.json
 (staged, final) pair; its presence means "all staged files are complete, the renames are under way".
 The next run in that directory (any process on the same host, once that pid is dead) completes the
 renames from the journal, then deletes the dead process's other temps.
+
+A run whose tasks commit in other processes (dvsot.runtime.dask_tasks) holds a lease `.run.lease~<host>~<pid>~<token>`
+in its output directory: byte 0 locked by the parent while the run is live, byte 1 shared by each worker
+while it commits. Stopping the run takes byte 1 exclusively (waiting out commits under way) and removes
+the file, so no worker commits after the parent has said the run stopped; a dead parent's lock is gone.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
 import secrets
 import shutil
 import socket
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: leases are checked by their file alone
+    fcntl = None
 
 _HOST = re.sub(r"[^A-Za-z0-9.-]", "-", socket.gethostname() or "host")[:64] or "host"
-_NAME = re.compile(r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
-                   r"(?P<suffix>\.[^.~]*)?$")
+_NAME = re.compile(r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old|lease)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
+                   r"(?P<suffix>(?:\.[^.~/]*)*)$")  # a writer's own temp of a staged file (faery's <name>.write) too
 _LEGACY = re.compile(r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$")  # the temp names of earlier dvsot versions
 
 
@@ -35,7 +48,7 @@ def new_token() -> str:
 
 
 def temp_name(final: Path, kind: str = "tmp", token: str | None = None, suffix: str | None = None) -> Path:
-    """The hidden sibling of `final` of this kind (tmp, commit, old) for this host, process and token."""
+    """The hidden sibling of `final` of this kind (tmp, commit, old, lease) for this host, process and token."""
     suffix = final.suffix if suffix is None else suffix
     return final.with_name(f".{final.name}.{kind}~{_HOST}~{os.getpid()}~{token or new_token()}{suffix}")
 
@@ -67,10 +80,17 @@ def _dead_local(name: str) -> tuple[str, int, str] | None:
 
 
 def _remove(p: Path) -> None:
+    """Remove a staged file or directory, and the temps a writer made of it (`<name>.<anything>`, as faery's .write)."""
     if p.is_dir() and not p.is_symlink():
         shutil.rmtree(p, ignore_errors=True)
     else:
         p.unlink(missing_ok=True)
+    try:
+        companions = [n for n in os.listdir(p.parent) if n.startswith(p.name + ".")]
+    except OSError:
+        return
+    for n in companions:
+        (p.parent / n).unlink(missing_ok=True)
 
 
 def write_json(path: Path, data: dict, token: str) -> None:
@@ -95,11 +115,36 @@ def replace_dir(staged: Path, final: Path, old: Path) -> None:
     _remove(old)
 
 
+def is_temp(name: str) -> bool:
+    """Whether a file name is one of dvsot's temps (staged files, journals, old directories, leases), any process's."""
+    return bool(_NAME.match(name) or _LEGACY.match(name))
+
+
+def _remove_gone(final: Path, root: Path) -> None:
+    """Remove a previous run's file, then the directories it leaves empty up to (not including) root."""
+    if final.is_dir() and not final.is_symlink():
+        shutil.rmtree(final, ignore_errors=True)
+    else:
+        final.unlink(missing_ok=True)
+    d = final.parent
+    while d != root and root in d.parents:
+        try:
+            os.rmdir(d)
+        except OSError:
+            return
+        d = d.parent
+
+
 def apply_journal(journal: Path) -> None:
-    """Complete the renames a journal names (each one done at most once), then the manifest, then drop the journal."""
+    """Complete the renames a journal names (each one done at most once), the removals of a previous run's files,
+    then the manifest, then drop the journal."""
     data = json.loads(journal.read_text())
     for e in data["entries"]:
-        staged, final = Path(e["staged"]), Path(e["final"])
+        final = Path(e["final"])
+        if e["kind"] == "gone":
+            _remove_gone(final, Path(e["old"]))
+            continue
+        staged = Path(e["staged"])
         if e["kind"] == "dir":
             replace_dir(staged, final, Path(e["old"]))
         elif staged.exists():
@@ -140,3 +185,100 @@ def clean_stale(directory: str | os.PathLike) -> list[Path]:
             _remove(p)
             removed.append(p)
     return removed
+
+
+def _lock(fd: int, how: int, byte: int) -> None:
+    """Lock one byte of fd (POSIX record lock, released when the process closes the file or dies)."""
+    fcntl.lockf(fd, how, 1, byte)
+
+
+class RunLease:
+    """The parent's side of a run's lease in `directory`: live from creation until `revoke()`."""
+
+    def __init__(self, directory: str | os.PathLike) -> None:
+        self.path = temp_name(Path(directory) / "run", "lease", suffix="")
+        self._fd: int | None = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_RDWR, 0o644)
+        try:
+            os.write(self._fd, b"\0\0")
+            if fcntl is not None:
+                _lock(self._fd, fcntl.LOCK_EX, 0)
+        except BaseException:
+            self.revoke()
+            raise
+
+    def revoke(self) -> None:
+        """End the run: wait for commits under way, then remove the lease; no worker commits for it afterwards."""
+        if self._fd is None:
+            return
+        try:
+            if fcntl is not None:
+                try:
+                    _lock(self._fd, fcntl.LOCK_EX, 1)
+                except OSError:
+                    pass  # no locks on this file system: the file's removal alone stops the workers
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        finally:
+            fd, self._fd = self._fd, None
+            os.close(fd)  # releases both locks
+
+
+class LeaseGuard:
+    """A worker's side of a run's lease (an `interrupts.Guard`): the run is live while the lease file stands and
+    its parent holds it."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self._fd: int | None = None
+        self._ino: int | None = None
+        try:
+            self._fd = os.open(self.path, os.O_RDWR)
+            self._ino = os.fstat(self._fd).st_ino
+        except OSError:
+            self._fd = None
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def problem(self) -> str | None:
+        """None while the run is live; else why it is not (stopped by its parent, or the parent died)."""
+        if self._fd is None:
+            return "its run was stopped (no lease)"
+        try:
+            if os.stat(self.path).st_ino != self._ino:
+                return "its run was stopped"
+        except OSError:
+            return "its run was stopped"
+        m = _NAME.match(self.path.name)
+        if m and m["host"] == _HOST and int(m["pid"]) == os.getpid():
+            return None  # the run's own process (its record locks never conflict with themselves): the file decides
+        if fcntl is not None:
+            try:
+                _lock(self._fd, fcntl.LOCK_SH | fcntl.LOCK_NB, 0)
+            except OSError as exc:
+                if exc.errno in (errno.EAGAIN, errno.EACCES):
+                    return None  # the parent holds it: live
+                return None  # no locks on this file system: the file decides
+            _lock(self._fd, fcntl.LOCK_UN, 0)
+            return "its parent process died"
+        return None
+
+    @contextmanager
+    def committing(self) -> Iterator[None]:
+        """Hold byte 1 shared while renaming; the run's `revoke()` waits for it."""
+        if self._fd is not None and fcntl is not None:
+            try:
+                _lock(self._fd, fcntl.LOCK_SH, 1)
+            except OSError:
+                pass
+        try:
+            yield
+        finally:
+            if self._fd is not None and fcntl is not None:
+                try:
+                    _lock(self._fd, fcntl.LOCK_UN, 1)
+                except OSError:
+                    pass

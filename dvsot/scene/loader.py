@@ -99,6 +99,10 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
         msg = err["msg"].removeprefix("Value error, ")
         if err["type"] == "extra_forbidden":
             msg = "unknown field"
+        elif loc and loc[0] == "events":  # the simulator's fields: their range and unit
+            from dvsot.events.simulator import field_message
+
+            msg = field_message(err)
         if field in (overrides or {}):  # the value came from the command line, not from the file
             raise UserError(f"{source}: field '{field}' = {overrides[field]!r} (an override): {msg}") from None
         line = locate(loc)
@@ -172,7 +176,14 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
 
 
 def _read_image(path: Path) -> None:
-    """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels."""
+    """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels or more than
+    validate.MAX_TEXTURE_PIXELS (checked from its header, before decoding)."""
+    from dvsot.events.frame_sources import image_size
+
+    size = image_size(path)
+    if size is not None and size[0] * size[1] > validate.MAX_TEXTURE_PIXELS:
+        raise UserError(f"{path}: image of {size[0]}x{size[1]} pixels, more than the bound of "
+                        f"{validate.MAX_TEXTURE_PIXELS} (8192x8192) for a texture")
     if path.suffix.lower() == ".exr":
         import OpenEXR
 

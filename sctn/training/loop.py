@@ -13,6 +13,7 @@ from pydantic import BaseModel, Field, ValidationError
 
 from dvsot.errors import RunError
 from dvsot.strict import Strict
+from dvsot.limits import MAX_LEARNING_RATE
 
 HELD_OUT_EVERY = 10  # every 10th usable segment of each file is a validation segment, never a training one
 
@@ -33,7 +34,7 @@ class TrainBudget(Strict):
     epochs: int = Field(3, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)
     batch_segments: int = Field(4, ge=1)
-    lr: float = Field(2e-3, gt=0)  # checked here: Adam's own ValueError on a NaN rate would look like a data problem
+    lr: float = Field(2e-3, gt=0, le=MAX_LEARNING_RATE)  # checked here: Adam's own ValueError on a NaN rate would look like a data problem
     seed: int = Field(0, ge=0, lt=2**63 - 1)  # numpy seeds are non-negative, torch's fit in int64 (seed + 1 is used)
     min_box_px: float = Field(8.0, ge=0)
     val_every: int = Field(50, ge=1)

@@ -3,10 +3,11 @@
 Per training segment (one with a ground-truth box of at least `min_box_px` a side): 20 positive
 (IoU >= 0.7) and 40 negative (IoU <= 0.5) uniform samples (paper §2.4), encoded as the events inside
 each box (sctn/encoding.py); the loss is the voltage loss of sctn/loss.py on each output neuron's
-maximum voltage over the time window, optionally plus a penalty on the synaptic operations the spikes
-drive (`ops_penalty`, the energy model of sctn/energy.py). Adam. Every `val_every` steps a fixed held-out
-set of segments (every 10th segment of each file) is scored. Fine-tuning lives in sctn/finetune.py
-(`finetune`, re-exported here).
+voltage at its error step (STCA's rule by default, `error_time`), optionally plus a penalty on the
+synaptic operations the spikes drive (`ops_penalty`, the energy model of sctn/energy.py). Adam. The
+weights start as `init` says (Kaiming-uniform by default). Every `val_every` steps a fixed set of
+validation segments is scored: from validation files when given, else every 10th segment of each
+training file, held out. Fine-tuning lives in sctn/finetune.py (`finetune`, re-exported here).
 """
 
 from __future__ import annotations
@@ -18,20 +19,25 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from pydantic import Field, SerializeAsAny
+from typing import Any, Callable, Literal
+
+from pydantic import Field, SerializeAsAny, model_validator
 
 from dvsot.dataset import Dataset
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes
 from sctn.energy import layer_ops
 from sctn.finetune import finetune  # noqa: F401  (re-exported: callers import it from here)
-from sctn.loss import LossKind, voltage_loss
+from sctn.loss import ErrorTime, LossKind, error_voltages, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
 from sctn.training.loop import TrainBudget, TrainConfigError, fit, held_out, spread  # noqa: F401  (TrainConfigError)
 
+NEARLY_SILENT = 0.1  # mean target V_max on validation positives below this: a nearly silent network
 MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment
+Init = Literal["kaiming", "calibrate", "fluctuation"]  # how the weights start (TrainConfig.init)
+INIT_METHODS = {"calibrate": "calibrate", "fluctuation": "fluctuation_init"}  # init -> the network's method
 
 
 class TrainConfig(TrainBudget):
@@ -40,11 +46,53 @@ class TrainConfig(TrainBudget):
 
     batch_segments: int = Field(4, ge=1, le=MAX_BATCH_SEGMENTS)  # every segment's 60 samples are built at once
     loss: LossKind = "exp"
+    error_time: ErrorTime = "stca"  # the step each sample's error sits at: STCA's rule, or "max" (an ablation row)
     ops_penalty: float = Field(0.0, ge=0)  # loss weight per million synaptic operations (ACs) per sample; 0 = off
     squared_error: bool = False  # deviation: square each sample's eq.-5 error (sctn/loss.py)
     background_term: bool = False  # deviation: add the mirrored background-neuron error (sctn/loss.py)
-    calibrate: bool = False  # deviation: data-driven weight scale at initialisation (SCTN.calibrate), an ablation row
+    # the weights' start: Kaiming-uniform (today's preset; the paper gives none), the data-driven scale of
+    # SCTN.calibrate, or SCTN.fluctuation_init with fluctuation_xi; each an ablation row
+    init: Init = "kaiming"
+    fluctuation_xi: float = Field(2.0, gt=0, allow_inf_nan=False)  # theta over V's standard deviation at the start
     network: SerializeAsAny[NetworkConfig] = Field(default_factory=NetworkConfig)  # a TwinConfig keeps its fields
+    val_arscore_every: int | None = Field(None, ge=1)  # steps between validation ARscores (a caller's scorer); None = off
+
+    @model_validator(mode="before")
+    @classmethod
+    def _calibrate_is_an_init(cls, data: Any) -> Any:
+        """`calibrate: true` (configs written before `init`, and `dvsot train --calibrate`) is init "calibrate"."""
+        if isinstance(data, dict) and "calibrate" in data:
+            data = dict(data)
+            if data.pop("calibrate"):
+                if data.get("init", "calibrate") != "calibrate":
+                    raise ValueError(f"calibrate contradicts init {data['init']!r}")
+                data["init"] = "calibrate"
+        return data
+
+    @property
+    def calibrate(self) -> bool:
+        """Whether the weights start from the data-driven calibration (init "calibrate")."""
+        return self.init == "calibrate"
+
+
+def training_note(train_config: dict | None) -> str | None:
+    """What makes a checkpoint's training (its metadata's train_config) differ from today's preset in the error-time
+    rule or the initialisation, or None (also when nothing was recorded). A config without `error_time` was
+    trained before the rule became a setting: with the maximum over all steps."""
+    if not isinstance(train_config, dict):
+        return None
+    ways = []
+    rule = train_config.get("error_time")
+    preset_rule = TrainConfig.model_fields["error_time"].default
+    if rule is None:
+        ways.append("the old error-time rule (V's maximum over all steps; no error_time recorded)")
+    elif rule != preset_rule:
+        ways.append(f"error_time {rule!r} (the preset's is {preset_rule!r})")
+    init = train_config.get("init", "calibrate" if train_config.get("calibrate") else "kaiming")
+    preset_init = TrainConfig.model_fields["init"].default
+    if init != preset_init:
+        ways.append(f"init {init!r} (the preset's is {preset_init!r})")
+    return ("trained with " + " and ".join(ways)) if ways else None
 
 
 def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:
@@ -66,16 +114,21 @@ def segment_batch(items: list[tuple[EventBatch, int, np.ndarray]], image_wh: lis
     return torch.cat(xs), torch.from_numpy(np.concatenate(ious)), torch.from_numpy(np.concatenate(pos))
 
 
-def batch_loss(vmax: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> torch.Tensor:
-    """The voltage loss of cfg (eq. 5-6 of the target neuron by default) on maximum voltages (N, 2)."""
-    return voltage_loss(vmax, iou, pos, cfg.loss, squared=cfg.squared_error, background=cfg.background_term)
+def batch_loss(volts: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig,
+               rng: np.random.Generator) -> torch.Tensor:
+    """The voltage loss of cfg (eq. 5-6 of the target neuron by default) on output voltages (N, T, 2), each
+    sample's error at the step cfg.error_time picks (sctn.loss.error_steps; `rng` draws STCA's random steps)."""
+    v = error_voltages(volts, pos, cfg.error_time, rng)
+    return voltage_loss(v, iou, pos, cfg.loss, squared=cfg.squared_error, background=cfg.background_term)
 
 
 def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor, cfg: TrainConfig) -> dict:
-    """Loss, firing accuracy of the target neuron and mean V_max of positives / negatives on one batch."""
+    """Loss, firing accuracy of the target neuron and mean V_max of positives / negatives on one batch (the
+    loss's random error steps from a generator seeded by cfg.seed, so a fixed batch gives a fixed loss)."""
     with torch.no_grad():
-        vmax = model(x).max(dim=1).values
-        loss = float(batch_loss(vmax, iou, pos, cfg))
+        volts = model(x)
+        vmax = volts.max(dim=1).values
+        loss = float(batch_loss(volts, iou, pos, cfg, np.random.default_rng(cfg.seed)))
     fires = vmax[:, 1] >= THETA
     return {"loss": loss, "accuracy": float((fires == pos).float().mean()),
             "vmax_pos": float(vmax[pos, 1].mean()) if pos.any() else float("nan"),
@@ -84,32 +137,48 @@ def evaluate(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
 
 
 def training_loss(model: SCTN, x: torch.Tensor, iou: torch.Tensor, pos: torch.Tensor,
-                  cfg: TrainConfig) -> tuple[torch.Tensor, float | None]:
+                  cfg: TrainConfig, rng: np.random.Generator) -> tuple[torch.Tensor, float | None]:
     """The voltage loss of one batch, plus cfg.ops_penalty x the mean synaptic operations per sample in
     millions (the ACs the spikes of conv1..fc2 drive; input events are given, not learned), and those ACs."""
     if cfg.ops_penalty <= 0:
-        return batch_loss(model(x).max(dim=1).values, iou, pos, cfg), None
+        return batch_loss(model(x), iou, pos, cfg, rng), None
     volts, spikes = model.forward_record(x)
     ops = torch.stack(layer_ops(model, spikes)[1:]).sum(dim=0).mean()
-    loss = batch_loss(volts.max(dim=1).values, iou, pos, cfg) + cfg.ops_penalty * ops / 1e6
+    loss = batch_loss(volts, iou, pos, cfg, rng) + cfg.ops_penalty * ops / 1e6
     return loss, float(ops.detach())
 
 
 def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
-          build=SCTN) -> tuple[SCTN, dict]:
+          build=SCTN, val_files: list[Path] | None = None,
+          val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[SCTN, dict]:
     """Train a new SCTN on the given dataset files; returns the model and a history of metrics. `build(cfg.network)`
-    makes the network (another with SCTN's interface: sctn.ann's twin); its `calibrate`, if any, runs first."""
+    makes the network (another with SCTN's interface: sctn.ann's twin); cfg.init's method, if any, runs first.
+
+    Validation (every cfg.val_every steps and at the end): on cfg.val_segments segments spread over `val_files`
+    when given (then every usable training segment trains), else over every 10th segment of the training files
+    (held out). Each entry of history["val"] has the loss, accuracy, mean target V_max on positives and
+    negatives, and the mean training loss since the previous entry; `val_score(model)` (a tracking score, e.g.
+    {"arscore": ...}) is added every cfg.val_arscore_every steps and at the end.
+    """
     rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
     datasets = [Dataset(f) for f in files]
+    n_train = len(datasets)
     try:
+        datasets += [Dataset(f) for f in (val_files or [])]
         train_items, val_items = [], []
         for d, ds in enumerate(datasets):
-            fit_idx, val_idx = held_out(usable_segments(ds, cfg.min_box_px))
+            usable = usable_segments(ds, cfg.min_box_px)
+            if d >= n_train:
+                val_items += [(d, int(i)) for i in usable]
+                continue
+            fit_idx, val_idx = (usable, usable[:0]) if val_files else held_out(usable)
             val_items += [(d, int(i)) for i in val_idx]
             train_items += [(d, int(i)) for i in fit_idx]
         if not train_items:
             raise ValueError("no training segments with a ground-truth box")
+        if val_files and not val_items:
+            raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
 
         def load(items):
             segs = [datasets[d].segment(i) for d, i in items]
@@ -119,8 +188,13 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
         model = build(cfg.network)
         calib_items = [train_items[k] for k in rng.choice(len(train_items), min(8, len(train_items)), replace=False)]
         calib_batch = segment_batch(*load(calib_items), rng, cfg.network)[0]  # drawn either way: same rng stream
-        calibrate = cfg.calibrate and hasattr(model, "calibrate")  # the ANN twin has no calibration
-        history_calibration = model.calibrate(calib_batch) if calibrate else None
+        history_calibration = None
+        if cfg.init != "kaiming":
+            method = getattr(model, INIT_METHODS[cfg.init], None)
+            if method is None:
+                raise ValueError(f"init {cfg.init!r} is not available for {type(model).__name__} (only kaiming)")
+            history_calibration = (method(calib_batch) if cfg.init == "calibrate"
+                                   else method(calib_batch, xi=cfg.fluctuation_xi))
         opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
 
         val_pick = spread(val_items, cfg.val_segments)
@@ -128,18 +202,41 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
         val_batch = segment_batch(*load(val_pick), val_rng, cfg.network) if val_pick else None
 
         def step_loss(items: list) -> tuple[torch.Tensor, dict]:
-            loss, ops = training_loss(model, *segment_batch(*load(items), rng, cfg.network), cfg)
+            loss, ops = training_loss(model, *segment_batch(*load(items), rng, cfg.network), cfg, rng)
             return loss, ({} if ops is None else {"train_ops_per_sample": ops})
 
-        history = fit(model, opt, train_items, cfg, rng, step_loss,
-                      (lambda: evaluate(model, *val_batch, cfg)) if val_batch is not None else None,
+        history: dict = {"train_loss": [], "val": [], "calibration": history_calibration, "init": cfg.init,
+                         "validation": "files" if val_files else "held_out"}
+        scored: dict = {}  # step -> val_score's figures (at most once a step: fit validates the last step twice)
+        since = [0]  # the step of the previous validation
+
+        def validate() -> dict:
+            step = len(history["train_loss"])
+            m = evaluate(model, *val_batch, cfg)
+            recent = history["train_loss"][since[0]:step]
+            m["train_loss_mean"] = float(np.mean(recent)) if recent else None
+            since[0] = step
+            if val_score is not None and cfg.val_arscore_every and step % cfg.val_arscore_every == 0:
+                scored.setdefault(step, val_score(model))
+                m.update(scored[step])
+            return m
+
+        history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
                       lambda m: (f"val loss {m['loss']:.4f} acc {m['accuracy']:.3f} "
-                                 f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}"),
-                      {"train_loss": [], "val": [], "calibration": history_calibration}, progress, "train")
+                                 f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}"
+                                 + (f" arscore {m['arscore']:.3f}" if "arscore" in m else "")),
+                      history, progress, "train")
         if val_batch is not None:
+            final = history["val"][-1]
+            if val_score is not None and cfg.val_arscore_every and history["steps"] not in scored:
+                model.eval()
+                final.update(val_score(model))
             # a network whose target output never rises above 0 cannot track; with eq. 5 and no bias nothing
             # revives it (no spike, no surrogate gradient), so say so rather than hand it on as trained
-            history["silent"] = history["val"][-1]["vmax_max"] <= 0.0
+            history["silent"] = final["vmax_max"] <= 0.0
+            # a target neuron whose mean V_max on positives stays below NEARLY_SILENT barely responds: said, not refused
+            history["target_vmax_pos"] = final["vmax_pos"]
+            history["nearly_silent"] = not final["vmax_pos"] >= NEARLY_SILENT
         history.update(train_segments=len(train_items), val_segments=len(val_pick))
         return model, history
     finally:

@@ -83,7 +83,8 @@ def fails_cleanly(tmp_path, capsys, argv, words):
     before = snapshot(tmp_path)
     assert main(["bench", *argv, "--quiet", "--jobs", "1"]) == 2, argv
     captured = capsys.readouterr()
-    err = captured.err.strip().splitlines()
+    # a checkpoint's one-line note (the shipped one was trained with the old error-time rule) is not an error
+    err = [line for line in captured.err.strip().splitlines() if ": note: " not in line]
     words = [words] if isinstance(words, str) else words
     assert len(err) == 1 and all(w in err[0] for w in words), (argv, err)
     assert "written" not in captured.out, argv

@@ -322,7 +322,7 @@ def test_an_output_symlink_is_written_through(tmp_path):
     target.write_bytes(b"old")
     link = tmp_path / "link.h5"
     link.symlink_to(target)
-    r = run("simulate", frames_stack(tmp_path / "f.npy", n=3), "--fps", "1000", "-o", link, "--quiet")
+    r = run("simulate", frames_stack(tmp_path / "f.npy", n=12), "--fps", "1000", "-o", link, "--quiet")
     assert r.returncode == 0, r.stderr
     assert link.is_symlink() and os.path.samefile(link, target) and target.read_bytes()[:4] == b"\x89HDF"
     assert names(tmp_path / "real") == ["data.h5"]

@@ -113,9 +113,10 @@ def test_calibration_is_a_deviation_off_by_default(data, tmp_path, capsys):
     out = tmp_path / "m.pt"
     assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--calibrate"]) == 0
     capsys.readouterr()
-    assert load_checkpoint(out)[1]["train_config"]["calibrate"] is True
+    assert load_checkpoint(out)[1]["train_config"]["init"] == "calibrate"
     from dvsot.cli import build_parser
-    assert build_parser().parse_args(["train"]).calibrate is None  # unset: TrainConfig's default (False)
+    assert build_parser().parse_args(["train"]).calibrate is None  # unset: TrainConfig's default (kaiming)
+    assert build_parser().parse_args(["train"]).init is None
 
 
 def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path, capsys, monkeypatch):
@@ -144,3 +145,38 @@ def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(out) in err[0] and "silent" in err[0], err
     assert out.read_bytes() == b"a good checkpoint" and sorted(p.name for p in tmp_path.iterdir()) == ["m.pt"]
+
+
+def test_validation_files_learning_curves_and_arscore_in_the_history(data, tmp_path, capsys):
+    """--val-data validates on its own files (every training segment then trains); each validation entry has the
+    loss, accuracy, target V_max on positives and the training loss since the last one; --val-arscore-every adds
+    the validation sequences' ARscore; all of it lands in the checkpoint's .json."""
+    val = moving_square_file(tmp_path / "val.h5", width=64, height=48, size=12, duration_ms=40,
+                             velocity_px_s=(-80.0, 30.0), start=(40.0, 10.0), split="val", seed=3)
+    out = tmp_path / "m.pt"
+    args = ["train", "--data", str(data), "-o", str(out), *TINY, "--val-data", str(val), "--val-every", "1",
+            "--val-segments", "2", "--val-arscore-every", "2", "--val-arscore-segments", "3"]
+    assert main(args) == 0
+    capsys.readouterr()
+    meta = json.loads(out.with_suffix(".json").read_text())
+    history = meta["history"]
+    assert history["validation"] == "files" and history["val_segments"] == 2 and history["steps"] == 2
+    assert history["train_segments"] == 6  # 60 ms: all six usable segments train, none held out
+    steps = [v["step"] for v in history["val"]]
+    assert steps[:2] == [1, 2]
+    assert all({"loss", "accuracy", "vmax_pos", "train_loss_mean"} <= set(v) for v in history["val"])
+    assert "arscore" not in history["val"][0] and 0.0 <= history["val"][1]["arscore"] <= 1.0
+    assert isinstance(history["nearly_silent"], bool) and "target_vmax_pos" in history
+
+
+def test_validation_flags_are_refused_before_training(data, tmp_path, capsys, no_training):
+    out = tmp_path / "m.pt"
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--val-data", str(data)]) == 2
+    assert "in both --data and --val-data" in capsys.readouterr().err
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--val-arscore-every", "5"]) == 2
+    assert "--val-arscore-every needs --val-data" in capsys.readouterr().err
+    assert main(["train", "--model", "siamfc", "--data", str(data), "-o", str(out), "--init", "fluctuation"]) == 2
+    assert "--init: not a setting of --model siamfc" in capsys.readouterr().err
+    assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--val-every", "0"]) == 2
+    assert "--val-every must be" in capsys.readouterr().err
+    assert not out.exists()

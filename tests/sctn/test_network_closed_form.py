@@ -462,9 +462,13 @@ def test_shipped_checkpoint_is_the_paper_preset_and_silent_on_an_empty_input():
 
     from sctn.checkpoint import load_checkpoint
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # no legacy-layout note
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         model, meta = load_checkpoint(None)
+    # no legacy-layout note; one line saying it was trained with the old error-time rule (no error_time recorded)
+    assert [type(w.message).__name__ for w in caught] == ["TrainingRuleWarning"]
+    assert "sctn_dvsot21.pt: trained with the old error-time rule" in str(caught[0].message)
+    assert "\n" not in str(caught[0].message)
     assert model.cfg.steps == 10 and model.cfg.tail_steps == 0 and not model.cfg.bias
     cfg = meta["train_config"]
     assert cfg["loss"] == "exp" and not cfg["squared_error"] and not cfg["background_term"]

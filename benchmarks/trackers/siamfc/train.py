@@ -23,6 +23,7 @@ from torch.nn import functional as F
 from benchmarks.evaluation.atsltd import atsltd_frame
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
+from dvsot.limits import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget, fit, held_out, spread
 
 
@@ -33,7 +34,7 @@ class SiamFCTrainConfig(TrainBudget):
     epochs: int = Field(20, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
     batch_segments: int = Field(8, ge=1)  # pairs per step
-    lr: float = Field(1e-3, gt=0)
+    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
     max_gap: int = Field(100, ge=1)  # segments between exemplar and search
     shift_px: float = Field(8.0, ge=0)
     stretch: float = Field(0.05, ge=0)

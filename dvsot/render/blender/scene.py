@@ -5,7 +5,8 @@ under RENDER_DIR, /dev/shm (the render result cannot be read from memory in back
 Blender could not write there (a full or read-only file system) is one RunError line:
 
 * view layer "main": the whole scene; Combined -> linear-light luma (Rec. 709), Object Index ->
-  the *visible* target mask (occluders in front hide it);
+  the object id of each pixel (dvsot.events.labels: 0 background, 1 target, 2.. the other objects in the
+  scene file's order) and from it the *visible* target mask (occluders in front hide it);
 * the *amodal* target mask (the paper's "target rendered separately"): by default the target's
   triangles projected with the same camera and rasterised at pixel centres (dvsot.render.raster), which
   gives the pixels an object-index pass of the target alone gives, at a fraction of the cost; with
@@ -36,12 +37,13 @@ from dvsot.render.blender.materials import direct_lighting, material, texture_co
 from dvsot.render.blender.quiet import captured_output, quiet_stdout
 from dvsot.scene import Background, SceneConfig, SceneObject, Texture
 from dvsot.errors import RunError, exception_line
+from dvsot.events.labels import TARGET_ID
 from dvsot.render.plane_view import seen_part
 from dvsot.render.raster import silhouette_mask, triangulate
 from dvsot.scene.shapes import mesh_for
 from dvsot.scene.trajectory import pose_and_scale
 
-TARGET_INDEX = 1
+TARGET_INDEX = TARGET_ID  # the target's pass index: its id in the per-event labels
 RENDER_DIR: str | None = "/dev/shm" if os.path.isdir("/dev/shm") else None  # None: the system's temp directory
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 # camera poses sampled over the sequence to find the part of the background plane it sees
@@ -151,6 +153,8 @@ class BlenderScene:
         self._target_tris = triangulate(faces)
         self.others = [(_mesh_object(o.name or f"{o.role}_{i}", o, self.collections["others"], surface), o)
                        for i, o in enumerate(cfg.objects)]
+        for i, (ob, _) in enumerate(self.others):  # the background plane keeps 0, the world's value
+            ob.pass_index = TARGET_INDEX + 1 + i
         self._background(cfg.background)
         if cfg.background.kind == "plane" and should_bake(cfg.background.material.texture, cfg.render.bake_background):
             self.bake_sizes = bake_background(self.background_plane, sc, cfg.render, cfg.background.size_m,
@@ -314,6 +318,10 @@ class BlenderScene:
 
     def render(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(linear luma float32 HxW, amodal target mask bool HxW, visible target mask bool HxW) at t seconds."""
+        return self.render_with_objects(t)[:3]
+
+    def render_with_objects(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """render(t) and the object id of each pixel (u1 HxW, dvsot.events.labels' ids) from the same pass."""
         import OpenEXR
 
         self.set_time(t)
@@ -342,9 +350,10 @@ class BlenderScene:
             path.unlink(missing_ok=True)
         rgba = channels["main.Combined"].pixels
         luma = rgba[..., :3] @ _LUMA
-        visible = np.rint(channels["main.Object Index.X"].pixels) == TARGET_INDEX
+        objects = np.rint(channels["main.Object Index.X"].pixels).astype(np.uint8)
+        visible = objects == TARGET_INDEX
         if self.cfg.render.amodal_mask == "render":
             amodal = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
         else:
             amodal = self.raster_amodal_mask()
-        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), amodal, visible
+        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), amodal, visible, objects

@@ -3,14 +3,15 @@
 the process's rand(), whose state the trackers before it had moved)."""
 
 import sys
+from concurrent.futures import ProcessPoolExecutor
 from contextlib import ExitStack
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from benchmarks.trackers import BUILTIN
-from dvsot.runtime.worker_pool import WorkerPool
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from synthetic import moving_square_file  # noqa: E402
@@ -48,7 +49,8 @@ def test_every_built_in_tracker_is_checked():
                          ids=["opencv-rct", "torch"])
 def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, names):
     with ExitStack() as stack:
-        pools = [stack.enter_context(WorkerPool(1)) for _ in range(len(names) + 1)]
+        spawn = get_context("spawn")
+        pools = [stack.enter_context(ProcessPoolExecutor(1, mp_context=spawn)) for _ in range(len(names) + 1)]
         shared = pools[0].submit(run_in_order, names + names[::-1], sequence)  # each twice, after all the others
         alone = {n: p.submit(run_in_order, [n], sequence) for n, p in zip(names, pools[1:])}  # a fresh worker each
         runs = shared.result(timeout=600)

@@ -1,0 +1,276 @@
+"""Challenge attributes of each segment, measured from a file's ground truth, and scores per attribute.
+
+Every threshold lives in `THRESHOLDS` (docs/benchmarks.md, "Scores per attribute", says what each
+means). An attribute a file cannot measure (no visibility, no labels, no scene) is left out for that
+file: its segments count neither as having it nor as lacking it.
+
+- occlusion: the visible share of the target's pixels at the segment's end below `occlusion_visibility`;
+- absent: nothing of the target visible at the segment's end, or outside the sensor (`/segments/absent`);
+- fast_motion: the ground-truth box centre moving faster than `fast_px_per_ms` since the previous segment;
+- small_target: the ground-truth box's area below `small_area_px`;
+- low_event_density: events inside the ground-truth box fewer than `low_density` per pixel per millisecond;
+- rotation: the target turning faster than `rotation_deg_per_s` relative to the camera (scene file);
+- camera_motion: the camera moving faster than `camera_m_per_s` or turning faster than `camera_deg_per_s`
+  (scene file);
+- distractor_nearby: at least `distractor_share` of the events in the box grown by half its size on each
+  side made by distractors (per-event labels).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.evaluation.metrics import ALL, Scores, pooled
+from benchmarks.evaluation.protocol import SequenceResult
+from dvsot.dataset import Dataset
+
+ATTRIBUTES = ("occlusion", "absent", "fast_motion", "small_target", "low_event_density", "rotation",
+              "camera_motion", "distractor_nearby")
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """The attributes' cuts: visibility 0..1, px/ms, px^2, events/px/ms, deg/s, m/s, share 0..1."""
+
+    occlusion_visibility: float = 0.5
+    fast_px_per_ms: float = 0.3
+    small_area_px: float = 400.0
+    low_density: float = 0.01
+    rotation_deg_per_s: float = 90.0
+    camera_m_per_s: float = 0.1
+    camera_deg_per_s: float = 5.0
+    distractor_share: float = 0.1
+
+
+THRESHOLDS = Thresholds()
+
+
+def segment_attributes(ds: Dataset, n: int | None = None, th: Thresholds = THRESHOLDS) -> dict[str, np.ndarray]:
+    """{attribute: bool per segment} for the first n segments of ds, for the attributes the file can measure."""
+    n = ds.num_segments if n is None else min(n, ds.num_segments)
+    box = ds.segment_boxes()[:n].astype(np.float64)
+    have = np.isfinite(box).all(axis=1)
+    out: dict[str, np.ndarray] = {}
+    vis, absent = ds.segment_visibility(), ds.segment_absent()
+    if vis is not None:
+        out["occlusion"] = np.nan_to_num(vis[:n], nan=1.0) < th.occlusion_visibility
+        out["absent"] = absent[:n].copy()
+    centre = box[:, :2] + box[:, 2:] / 2
+    step = np.full(n, np.nan)
+    if n > 1:
+        step[1:] = np.hypot(*(centre[1:] - centre[:-1]).T)
+        step[0] = step[1]  # the first segment moves as the second does
+    out["fast_motion"] = np.nan_to_num(step / (ds.segment_us / 1000.0), nan=0.0) > th.fast_px_per_ms
+    out["small_target"] = have & (box[:, 2] * box[:, 3] < th.small_area_px)
+    distractors = [r["id"] for r in ds.objects or () if r["role"] == "distractor"]
+    density, share = _event_measures(ds, box, n, np.array(distractors, np.int64))
+    out["low_event_density"] = have & (density < th.low_density)
+    if ds.objects is not None:
+        out["distractor_nearby"] = have & (share >= th.distractor_share)
+    motion = _scene_motion(ds, n)
+    if motion is not None:
+        target_deg, camera_m, camera_deg = motion
+        out["rotation"] = target_deg > th.rotation_deg_per_s
+        out["camera_motion"] = (camera_m > th.camera_m_per_s) | (camera_deg > th.camera_deg_per_s)
+    return {k: out[k] for k in ATTRIBUTES if k in out}
+
+
+def _event_measures(ds: Dataset, box: np.ndarray, n: int, distractors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per segment: events in the box per px per ms, and the distractors' share of the events in the grown box."""
+    density, share = np.zeros(n), np.zeros(n)
+    ms = ds.segment_us / 1000.0
+    for i in np.flatnonzero(np.isfinite(box).all(axis=1)):
+        seg = ds.segment(int(i))
+        ev = seg.events
+        x, y, w, h = box[i]
+        ex, ey = ev.x + 0.5, ev.y + 0.5  # pixel centres
+        inside = (ex >= x) & (ex < x + w) & (ey >= y) & (ey < y + h)
+        density[i] = np.count_nonzero(inside) / max(w * h, 1.0) / ms
+        if ev.object is not None and len(distractors):
+            near = (ex >= x - w / 2) & (ex < x + 1.5 * w) & (ey >= y - h / 2) & (ey < y + 1.5 * h)
+            k = np.count_nonzero(near)
+            share[i] = np.count_nonzero(near & np.isin(ev.object, distractors)) / k if k else 0.0
+    return density, share
+
+
+def _rotation_deg(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """Angle (degrees) of the rotation from r0 to r1, for stacks of 3x3 rotation matrices."""
+    cos = (np.einsum("nji,nji->n", r0, r1) - 1.0) / 2.0  # trace(r0^T r1)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _scene_motion(ds: Dataset, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Per segment (from its start to its end): the target's rotation relative to the camera (deg/s), the camera's
+    speed (m/s) and turn rate (deg/s), from the scene the file was rendered from; None without one."""
+    resolved = ds.attrs.get("scene_resolved")
+    if not isinstance(resolved, dict):
+        return None
+    from dvsot.scene import SceneConfig
+    from dvsot.scene.trajectory import pose_and_scale
+
+    try:
+        cfg = SceneConfig.model_validate(resolved)
+    except ValueError:  # a scene this dvsot no longer reads: the attributes that need it are left out
+        return None
+    seconds = ds.segment_us / 1e6
+    times = np.arange(n + 1) * seconds
+    cam_seed, target_seed = cfg.derived_seed("camera_shake"), cfg.derived_seed("shake:target")
+    cams = np.stack([pose_and_scale(cfg.camera, float(t), cam_seed)[0] for t in times])
+    targets = np.stack([pose_and_scale(cfg.target.trajectory, float(t), target_seed)[0] for t in times])
+    relative = np.einsum("nji,njk->nik", cams[:, :3, :3], targets[:, :3, :3])  # camera^T target
+    target_deg = _rotation_deg(relative[:-1], relative[1:]) / seconds
+    camera_m = np.linalg.norm(cams[1:, :3, 3] - cams[:-1, :3, 3], axis=1) / seconds
+    camera_deg = _rotation_deg(cams[:-1, :3, :3], cams[1:, :3, :3]) / seconds
+    return target_deg, camera_m, camera_deg
+
+
+def add_attributes(result: SequenceResult, ds: Dataset) -> SequenceResult:
+    """Store the segments' attributes (bool arrays, as long as result.iou) in result.extra['attributes']."""
+    result.extra["attributes"] = segment_attributes(ds, len(result.iou))
+    return result
+
+
+def _masks(results: list[SequenceResult]) -> dict[str, list[tuple[SequenceResult, np.ndarray]]]:
+    """{'all' or attribute: [(result, mask of its segments)]} over the results that measured it."""
+    out: dict[str, list] = {ALL: [(r, np.ones(len(r.iou), bool)) for r in results]}
+    for name in ATTRIBUTES:
+        rows = [(r, r.extra.get("attributes", {})[name]) for r in results
+                if name in r.extra.get("attributes", {})]
+        if rows:
+            out[name] = rows
+    return out
+
+
+def attribute_scores(results: list[SequenceResult]) -> dict[str, dict[str, Scores]]:
+    """{tracker: {'all' and each attribute: A, R, ARscore pooled over the counted segments with it}}."""
+    out: dict[str, dict[str, Scores]] = {}
+    for tracker in dict.fromkeys(r.tracker for r in results):
+        ok = [r for r in results if r.tracker == tracker and r.error is None]
+        out[tracker] = {name: pooled([np.where(m, r.iou, np.nan) for r, m in rows])
+                        for name, rows in _masks(ok).items()}
+    return out
+
+
+def attribute_ope(results: list[SequenceResult]) -> dict[str, dict[str, dict]]:
+    """{tracker: {'all' and each attribute: success AUC, precision at 20 px, counted segments}} of one-pass runs."""
+    from benchmarks.evaluation.ope import PRECISION_PX, precision_curve, success_curve
+
+    out: dict[str, dict[str, dict]] = {}
+    for tracker in dict.fromkeys(r.tracker for r in results):
+        ok = [r for r in results if r.tracker == tracker and r.error is None]
+        per = {}
+        for name, rows in _masks(ok).items():
+            iou = np.concatenate([np.where(m, r.iou, np.nan) for r, m in rows]) if rows else np.empty(0)
+            err = np.concatenate([np.where(m, r.extra["centre_error"], np.nan) for r, m in rows]) if rows else iou
+            s = success_curve(iou)
+            per[name] = {"AUC": float(np.mean(s)), f"P@{PRECISION_PX}": float(precision_curve(err)[PRECISION_PX]),
+                         "segments": int(np.count_nonzero(~np.isnan(iou)))}
+        out[tracker] = per
+    return out
+
+
+def _columns(summary: dict) -> list[str]:
+    names = {n for per in summary.values() for n in per}
+    return [n for n in (ALL, *ATTRIBUTES) if n in names]
+
+
+def _counts(summary: dict, cols: list[str], protocol: str) -> list[int]:
+    """Counted segments per column: the first tracker's that has it (every tracker runs on the same files)."""
+    counts = []
+    for c in cols:
+        v = next(per[c] for per in summary.values() if c in per)
+        counts.append(v.segments if protocol == "ar" else v["segments"])
+    return counts
+
+
+def _f(v: float) -> str:
+    return "-" if v is None or np.isnan(v) else f"{v:.3f}"
+
+
+def format_attributes(summary: dict, protocol: str = "ar") -> str:
+    """A Markdown table, a row per tracker, a column per attribute beside 'all': ARscore (A / R), or AUC (P@20)
+    for one-pass runs; the counted segments under each header."""
+    from dvsot.dataset.safe_names import markdown_cell
+
+    from benchmarks.evaluation.ope import PRECISION_PX
+
+    cols = _columns(summary)
+    counts = _counts(summary, cols, protocol)
+    lines = ["| tracker | " + " | ".join(f"{c} ({k} seg)" for c, k in zip(cols, counts)) + " |",
+             "|---" * (len(cols) + 1) + "|"]
+    for tracker, per in summary.items():
+        cells = []
+        for c in cols:
+            v = per.get(c)
+            if v is None:
+                cells.append("")
+            elif protocol == "ar":
+                cells.append(f"**{_f(v.arscore)}** ({_f(v.accuracy)} / {_f(v.robustness)})")
+            else:
+                cells.append(f"**{_f(v['AUC'])}** ({_f(v[f'P@{PRECISION_PX}'])})")
+        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
+    what = "ARscore (A / R)" if protocol == "ar" else "success AUC (precision at 20 px)"
+    return "\n".join(lines) + f"\n\nEach cell: {what} over the counted segments with the attribute " \
+                              "(benchmarks/evaluation/attributes.py; thresholds in THRESHOLDS).\n"
+
+
+def attributes_json(summary: dict, protocol: str = "ar") -> dict:
+    """The summary as plain values (NaN as None), with the thresholds."""
+    from dataclasses import asdict
+
+    def clean(v):
+        if isinstance(v, Scores):
+            v = asdict(v)
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        return None if isinstance(v, float) and np.isnan(v) else v
+    return {"protocol": protocol, "thresholds": asdict(THRESHOLDS), "scores": clean(summary)}
+
+
+def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar") -> Path:
+    """A bar chart: per attribute (and 'all'), each tracker's ARscore (or success AUC); written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dvsot.dataset.safe_names import plot_text
+    from dvsot.runtime.outputs import replacing
+
+    cols = _columns(summary)
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(cols) + 2), 4))
+    width = 0.8 / max(len(summary), 1)
+    for k, (tracker, per) in enumerate(summary.items()):
+        values = [np.nan if c not in per else (per[c].arscore if protocol == "ar" else per[c]["AUC"]) for c in cols]
+        ax.bar(np.arange(len(cols)) + k * width, np.nan_to_num(values), width, label=plot_text(tracker))
+    ax.set_xticks(np.arange(len(cols)) + width * (len(summary) - 1) / 2)
+    ax.set_xticklabels([f"{c} ({k})" for c, k in zip(cols, _counts(summary, cols, protocol))], rotation=30, ha="right")
+    ax.set_ylabel("ARscore" if protocol == "ar" else "success AUC")
+    ax.set_ylim(0, 1.02)
+    ax.set_title("per attribute (counted segments in brackets)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def write_attributes(results: list[SequenceResult], out_dir: str | os.PathLike, protocol: str = "ar") -> list[Path]:
+    """attributes.md, attributes.json and attributes.png of a run's results in out_dir."""
+    import json
+
+    from benchmarks.analysis.tables import write_text_atomic
+
+    summary = attribute_scores(results) if protocol == "ar" else attribute_ope(results)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [write_text_atomic(out / "attributes.md", format_attributes(summary, protocol)),
+            write_text_atomic(out / "attributes.json", json.dumps(attributes_json(summary, protocol), indent=2)),
+            plot_attributes(summary, out / "attributes.png", protocol)]

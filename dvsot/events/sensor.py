@@ -1,0 +1,393 @@
+"""The DVS pixel beyond ESIM's ideal one: photoreceptor, bandwidth, noise, latency and readout, as stages.
+
+Each stage is a group of EventParams fields (physical units in their names) that is off at its default;
+with every stage off (the `ideal` model) dvsot.events.EventSimulator runs alone and gives today's ESIM
+events. With any stage on, a SensorModel wraps the simulator, in signal order:
+
+1. Photoreceptor (`linlog_intensity`): linear below that intensity (1 = full scale), log above, joined
+   with matching value and slope (v2e's lin-log joins a line through the origin at 20 DN).
+2. Low-pass (`lowpass_order` 1 or 2, `lowpass_cutoff_hz` at full-scale intensity): v2e's IIR update
+   once a frame, state += eps * (input - state) with eps = min(1, inten01 * dt / tau), tau = 1 / (2 pi
+   f3dB) and inten01 = (I + dark) / (1 + dark), `dark_intensity` being the dark current's equivalent
+   intensity: dim pixels lag. Order 2 cascades two such stages.
+3. The level-crossing kernel on the filtered log signal, with today's thresholds, mismatch and
+   refractory period.
+4. Noise, flagged signal = False with its kind (event_batch.NOISE_KINDS); none moves the reference:
+   shot noise at `shot_noise_hz` per pixel in the dark, scaled by (f - 1) * inten01 + 1 with
+   f = `shot_noise_bright_factor` (v2e's shot-noise intensity factor), random polarity, Poisson;
+   leak ON events at `leak_hz` per pixel, each pixel's rate log-normal around it
+   (`leak_spread_decades`: the std of log10 of the rate) and its periods gamma-distributed with
+   coefficient of variation `leak_period_cv` (1: Poisson, as the ideal model; 0: periodic);
+   hot pixels (`hot_pixel_fraction` of the pixels, drawn once) firing ON at `hot_pixel_hz`, Poisson.
+5. Latency: every event's timestamp is delayed by `latency_us` plus Gaussian jitter of std
+   `latency_jitter_us` (a delay is never negative); events are re-sorted by time.
+6. Readout: an arbiter passing at most `readout_limit_hz` events a second, first come first served;
+   an event waits for the one before it, and with `readout_fifo_events` N > 0 an event that finds N
+   events waiting is dropped (counted). 0 waits as long as it takes.
+
+Events delayed past the current frame are held and handed out with a later frame, so every batch
+stays time-ordered; those still held after the last frame are counted as `held_at_end`. All state is
+per pixel (or per held event): memory does not grow with the number of frames.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+from dvsot.errors import UserError
+from dvsot.events.batch import NOISE_KINDS, EventBatch
+
+if TYPE_CHECKING:
+    from dvsot.events import EventParams, EventSimulator
+
+SHOT, LEAK, HOT = (NOISE_KINDS.index(k) for k in ("shot", "leak", "hot"))
+
+
+@numba.njit(cache=True, nogil=True)
+def front_end(L, out, lp1, lp2, first, linlog_intensity, log_eps, order, dt_over_tau, dark):
+    """Photoreceptor and low-pass of one frame: L (log(I + eps), flat float64) -> out, the low-pass state in lp1, lp2.
+
+    first: the state starts at the input (steady state). dt_over_tau: the frame interval over the time
+    constant at full-scale intensity; the step of a pixel is min(1, (I + dark) / (1 + dark) * dt_over_tau).
+    """
+    knee_log = math.log(linlog_intensity + log_eps) if linlog_intensity > 0.0 else 0.0
+    knee_slope = 1.0 / (linlog_intensity + log_eps)
+    for i in range(L.shape[0]):
+        v = L[i]
+        inten = max(math.exp(v) - log_eps, 0.0)
+        if inten < linlog_intensity:  # linear below the knee, tangent to the log at it
+            v = knee_log + (inten - linlog_intensity) * knee_slope
+        if order > 0:
+            if first:
+                lp1[i] = v
+                if order == 2:
+                    lp2[i] = v
+            else:
+                e = min(1.0, (inten + dark) / (1.0 + dark) * dt_over_tau)
+                lp1[i] += e * (v - lp1[i])
+                if order == 2:
+                    lp2[i] += e * (lp1[i] - lp2[i])
+            v = lp1[i] if order == 1 else lp2[i]
+        out[i] = v
+
+
+def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.ndarray:
+    """The photoreceptor's output for log intensities L = log(I + log_eps): L above the lin-log knee, its tangent below."""
+    if linlog_intensity <= 0:
+        return L
+    inten = np.maximum(np.exp(L) - log_eps, 0.0)
+    knee = linlog_intensity + log_eps
+    return np.where(inten < linlog_intensity, np.log(knee) + (inten - linlog_intensity) / knee, L)
+
+
+@numba.njit(cache=True, nogil=True)
+def coded_front_end(codes, plog, inten01, out, lp1, lp2, first, order, dt_over_tau):
+    """front_end for a frame of integer codes: plog[c] the photoreceptor's output and inten01[c] the relative
+    intensity of code c (tables made once per code table), the low-pass as front_end's."""
+    for i in range(codes.shape[0]):
+        c = codes[i]
+        v = plog[c]
+        if first:
+            lp1[i] = v
+            if order == 2:
+                lp2[i] = v
+        else:
+            e = min(1.0, inten01[c] * dt_over_tau)
+            lp1[i] += e * (v - lp1[i])
+            if order == 2:
+                lp2[i] += e * (lp1[i] - lp2[i])
+        out[i] = lp1[i] if order == 1 else lp2[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def readout(t_in, period_us, fifo, state):
+    """The arbiter over time-ordered arrival times t_in (int us): (kept mask, output times, dropped count).
+
+    state[0] is the time (float us) the arbiter is free again, carried between calls. An event is read
+    at max(arrival, free) and keeps the arbiter for period_us; with fifo > 0 one that arrives while fifo
+    events wait (arrived, not yet read) is dropped.
+    """
+    n = t_in.shape[0]
+    keep = np.ones(n, np.bool_)
+    t_out = np.empty(n, np.int64)
+    free = state[0]
+    dropped = 0
+    for j in range(n):
+        t = float(t_in[j])
+        start = max(t, free)
+        if fifo > 0 and start > t:
+            waiting = math.ceil((start - t) / period_us - 1e-9) - 1  # read after this arrival, before this event
+            if waiting >= fifo:
+                keep[j] = False
+                dropped += 1
+                t_out[j] = t_in[j]
+                continue
+        t_out[j] = np.int64(math.floor(start + 0.5))
+        free = start + period_us
+    state[0] = free
+    return keep, t_out, dropped
+
+
+@numba.njit(cache=True, nogil=True)
+def due(next_us, t1, scratch):
+    """The number of processes whose next event is at or before t1 (us), their indices in scratch[:n]: one pass."""
+    n = 0
+    for i in range(next_us.shape[0]):
+        if next_us[i] <= t1:
+            scratch[n] = i
+            n += 1
+    return n
+
+
+class Renewal:
+    """Per-pixel renewal processes (leak, hot pixels): event times with gamma periods of a given rate and CV."""
+
+    def __init__(self, pixels: np.ndarray, rate_hz: np.ndarray, cv: float, rng: np.random.Generator) -> None:
+        self.pixels, self.rate_hz, self.cv, self._rng = pixels, rate_hz, float(cv), rng
+        self._next_us = np.empty(0)
+
+    def _periods_us(self, idx: np.ndarray, length_biased: bool = False) -> np.ndarray:
+        """Periods (us) of the processes idx: gamma of mean 1 / rate and CV cv (length-biased: shape + 1)."""
+        mean = 1e6 / self.rate_hz[idx]
+        if self.cv == 0:
+            return mean
+        shape = 1.0 / self.cv ** 2
+        return self._rng.gamma(shape + (1.0 if length_biased else 0.0), 1.0 / shape, idx.size) * mean
+
+    def start(self, t_us: float) -> None:
+        """Stationary start at t_us: the time to each first event is the residual of a length-biased period."""
+        idx = np.arange(self.pixels.size)
+        self._next_us = t_us + self._rng.random(idx.size) * self._periods_us(idx, length_biased=True)
+        self._scratch = np.empty(idx.size, np.int64)
+
+    def events(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """(pixel, float us time) of the events up to t1, the processes moved past t1."""
+        pix, times = [], []
+        now = self._scratch[:due(self._next_us, t1, self._scratch)].copy()
+        while now.size:
+            pix.append(self.pixels[now])
+            times.append(self._next_us[now])
+            self._next_us[now] += self._periods_us(now)
+            now = now[self._next_us[now] <= t1]
+        if not pix:
+            return np.empty(0, np.int64), np.empty(0)
+        return np.concatenate(pix).astype(np.int64), np.concatenate(times)
+
+
+class SensorModel:
+    """The stages around an EventSimulator: frames in (as EventSimulator.step takes them), time-ordered events out."""
+
+    def __init__(self, sim: "EventSimulator", seed: int) -> None:
+        self.sim, self.params = sim, sim.params
+        p, n = self.params, sim.width * sim.height
+        rng_leak, rng_shot, rng_hot, rng_time = (np.random.default_rng(s) for s in
+                                                 np.random.SeedSequence(int(seed)).spawn(6)[2:])
+        self._rng_shot, self._rng_time = rng_shot, rng_time
+        self._lp1 = np.empty(n) if p.lowpass_order else np.empty(0)
+        self._lp2 = np.empty(n) if p.lowpass_order == 2 else np.empty(0)
+        self._raw = np.empty(n)
+        self._outs = (np.empty(n), np.empty(n))  # the simulator keeps the previous one: written in turn
+        self._frames = 0
+        self._tables: tuple = (None,)  # (code table, photoreceptor table, inten01 table, intensity table)
+        self._inten_now: tuple = (None, None)  # (codes, intensity table) or (log intensities, None) of this frame
+        self._t_prev: int | None = None
+        self._leak = self._hot = None
+        if p.leak_hz > 0:
+            rate = np.full(n, p.leak_hz)
+            if p.leak_spread_decades > 0:
+                rate *= 10.0 ** (p.leak_spread_decades * rng_leak.standard_normal(n))
+            self._leak = Renewal(np.arange(n), rate, p.leak_period_cv, rng_leak)
+        n_hot = int(round(p.hot_pixel_fraction * n))
+        if n_hot and p.hot_pixel_hz > 0:
+            hot = np.sort(rng_hot.choice(n, n_hot, replace=False))
+            self._hot = Renewal(hot, np.full(n_hot, p.hot_pixel_hz), 1.0, rng_hot)
+        self._held = _with_kinds(EventBatch.empty())  # delayed past the last frame, not yet at the arbiter
+        self._read = _with_kinds(EventBatch.empty())  # read out for after the last frame
+        self._arbiter = np.zeros(1)
+        self.dropped = 0
+
+    @property
+    def held(self) -> int:
+        """Events delayed past the last frame so far (latency or readout), not handed out yet."""
+        return len(self._held) + len(self._read)
+
+    def _log(self, frame, is_log: bool) -> np.ndarray:
+        """The frame as flat float64 log intensity log(I + log_eps), checked as the simulator checks it."""
+        from dvsot.events import CodedFrame, log_intensity
+
+        sim = self.sim
+        if isinstance(frame, CodedFrame):
+            return np.take(frame.table, sim._codes(frame), out=self._raw)
+        a = np.asarray(frame)
+        if a.shape != (sim.height, sim.width):
+            raise UserError(f"frame has shape {a.shape}, expected ({sim.height}, {sim.width})")
+        if a.dtype.kind not in "fiu":
+            raise UserError(f"frame has dtype {a.dtype}, expected a real number type")
+        if not is_log:
+            return log_intensity(a, self.params.log_eps, self._raw)
+        np.copyto(self._raw, a.reshape(-1), casting="unsafe")
+        if not np.isfinite(self._raw.sum()):
+            raise UserError("frame contains NaN or infinite values")
+        return self._raw
+
+    def step(self, frame, t_us: int, is_log: bool = False) -> EventBatch:
+        """Events handed out up to t_us (microseconds): signal and noise of the interval, delayed and read out."""
+        p, sim = self.params, self.sim
+        t_us = int(t_us)
+        if self._t_prev is not None and t_us <= self._t_prev:
+            raise UserError(f"frame timestamps must increase: {t_us} us follows {self._t_prev} us")
+        first = self._t_prev is None
+        if not first:  # before any state changes: a refused interval leaves the model as it was
+            self._check_hot(self._t_prev, t_us)
+        dt_over_tau = 0.0 if first else (t_us - self._t_prev) * 1e-6 * 2 * math.pi * p.lowpass_cutoff_hz
+        from dvsot.events import CodedFrame
+
+        if isinstance(frame, CodedFrame):  # by code tables: no log or exp per pixel
+            codes = sim._codes(frame)
+            plog, inten01, inten = self._code_tables(frame.table)
+            self._inten_now = (codes, inten)
+            if p.lowpass_order == 0:  # the photoreceptor alone is another code table: the simulator's coded path
+                signal = sim.step(CodedFrame(codes.reshape(sim.height, sim.width), plog), t_us)
+            else:
+                out = self._outs[self._frames % 2]
+                coded_front_end(codes, plog, inten01, out, self._lp1, self._lp2, first, p.lowpass_order, dt_over_tau)
+                signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+        else:
+            raw = self._log(frame, is_log)
+            self._inten_now = (raw, None)
+            out = self._outs[self._frames % 2]
+            front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
+                      dt_over_tau, p.dark_intensity)
+            signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+        self._frames += 1
+        if first:
+            self._t_prev = t_us
+            for proc in (self._leak, self._hot):
+                if proc is not None:
+                    proc.start(t_us)
+            return _with_kinds(EventBatch.empty())
+        t0, self._t_prev = self._t_prev, t_us
+        batch = self._merge(signal, self._noise(t0, t_us))
+        return self._deliver(batch, t_us)
+
+    def _check_hot(self, t0: int, t1: int) -> None:
+        """UserError if the hot pixels or the brightest shot noise would draw too many events in (t0, t1] (us)."""
+        from dvsot.events.simulator import MAX_NOISE_EVENTS
+
+        p, seconds = self.params, (t1 - t0) * 1e-6
+        n_hot = 0 if self._hot is None else self._hot.pixels.size
+        for field, mean in (("hot_pixel_hz", p.hot_pixel_hz * n_hot * seconds),
+                            ("shot_noise_bright_factor", p.shot_noise_hz * max(1.0, p.shot_noise_bright_factor)
+                             * self.sim.width * self.sim.height * seconds)):
+            if mean > MAX_NOISE_EVENTS:
+                raise UserError(f"{field} {getattr(p, field):g} gives {mean:.3g} noise events between frames "
+                                f"{(t1 - t0) / 1000:g} ms apart, more than the bound of {MAX_NOISE_EVENTS:g}")
+
+    def _code_tables(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(photoreceptor output, inten01, intensity) per code of a table of log intensities; kept for the last table."""
+        if self._tables[0] is not table:
+            p = self.params
+            inten = np.maximum(np.exp(table) - p.log_eps, 0.0)
+            plog = photoreceptor(table, p.linlog_intensity, p.log_eps)
+            self._tables = (table, plog, (inten + p.dark_intensity) / (1.0 + p.dark_intensity), inten)
+        return self._tables[1], self._tables[2], self._tables[3]
+
+    def _intensity(self, pix: np.ndarray) -> np.ndarray:
+        """The current frame's linear intensity (1 = full scale) at pixels pix."""
+        values, inten = self._inten_now
+        if inten is not None:
+            return inten[values[pix]]
+        return np.maximum(np.exp(values[pix]) - self.params.log_eps, 0.0)
+
+    def _noise(self, t0: int, t1: int) -> list[tuple[np.ndarray, ...]]:
+        """Shot, leak and hot-pixel events in (t0, t1] as (pixel, float us, polarity, kind) parts."""
+        p, n = self.params, self.sim.width * self.sim.height
+        parts = []
+        if p.shot_noise_hz > 0:
+            rng, f = self._rng_shot, p.shot_noise_bright_factor
+            top = max(1.0, f)  # the largest factor over intensities: drawn at that rate, thinned per pixel
+            k = rng.poisson(p.shot_noise_hz * top * n * (t1 - t0) * 1e-6)
+            pix = rng.integers(0, n, k)
+            times = t1 - rng.random(k) * (t1 - t0)  # in (t0, t1]
+            pol = rng.random(k) < 0.5
+            if f != 1.0:
+                inten = self._intensity(pix)
+                inten01 = np.minimum((inten + p.dark_intensity) / (1.0 + p.dark_intensity), 1.0)
+                keep = rng.random(k) * top < (f - 1.0) * inten01 + 1.0
+                pix, times, pol = pix[keep], times[keep], pol[keep]
+            parts.append((pix, times, pol, SHOT))
+        for proc, kind in ((self._leak, LEAK), (self._hot, HOT)):
+            if proc is not None:
+                pix, times = proc.events(float(t1))
+                parts.append((pix, times, np.ones(pix.size, bool), kind))
+        return parts
+
+    def _merge(self, signal: EventBatch, noise: list[tuple[np.ndarray, ...]]) -> EventBatch:
+        """Signal events and noise parts as one batch sorted by (time, pixel), signal first among equals."""
+        w, n_pix = self.sim.width, self.sim.width * self.sim.height
+        npix = np.concatenate([part[0] for part in noise]) if noise else np.empty(0, np.int64)
+        if npix.size == 0:
+            return _with_kinds(signal)
+        nt = np.concatenate([np.rint(part[1]).astype(np.int64) for part in noise])
+        npol = np.concatenate([part[2].astype(np.uint8) for part in noise])
+        nkind = np.concatenate([np.full(part[0].size, part[3], np.uint8) for part in noise])
+        # the signal events are in (time, pixel) order already: the few noise events are sorted and inserted
+        nkey = nt * n_pix + npix
+        order = np.argsort(nkey, kind="stable")
+        skey = signal.t * n_pix + (signal.y.astype(np.int64) * w + signal.x)
+        at = np.searchsorted(skey, nkey[order], side="right") + np.arange(order.size)  # after equal signal keys
+        total = len(signal) + order.size
+        is_noise = np.zeros(total, bool)
+        is_noise[at] = True
+        kind = np.zeros(total, np.uint8)
+        kind[at] = nkind[order]
+        t, pol = np.empty(total, np.int64), np.empty(total, np.uint8)
+        x, y = np.empty(total, np.uint16), np.empty(total, np.uint16)
+        t[at], pol[at], x[at], y[at] = nt[order], npol[order], npix[order] % w, npix[order] // w
+        rest = ~is_noise
+        t[rest], pol[rest], x[rest], y[rest] = signal.t, signal.p, signal.x, signal.y
+        return EventBatch(x, y, t, pol, kind == 0, kind)
+
+    def _deliver(self, batch: EventBatch, t1: int) -> EventBatch:
+        """Latency and readout applied to the interval's events; those at or before t1 (us) handed out, the rest held."""
+        p = self.params
+        if p.latency_us > 0 or p.latency_jitter_us > 0:
+            delay = np.full(len(batch), p.latency_us)
+            if p.latency_jitter_us > 0:
+                delay = np.maximum(delay + p.latency_jitter_us * self._rng_time.standard_normal(len(batch)), 0.0)
+            batch = EventBatch(batch.x, batch.y, batch.t + np.rint(delay).astype(np.int64), batch.p, batch.signal,
+                               batch.noise_kind)
+            joined = EventBatch.concatenate([self._held, batch])
+            if p.latency_jitter_us > 0 or len(self._held):  # nearly sorted: the stable sort's runs are long
+                w, n_pix = self.sim.width, self.sim.width * self.sim.height
+                key = joined.t * n_pix + (joined.y.astype(np.int64) * w + joined.x)
+                joined = joined.select(np.argsort(key, kind="stable"))
+            cut = int(np.searchsorted(joined.t, t1, side="right"))
+            batch, self._held = joined.select(slice(0, cut)), joined.select(slice(cut, None))
+        if p.readout_limit_hz > 0:
+            keep, t_out, dropped = readout(batch.t, 1e6 / p.readout_limit_hz, int(p.readout_fifo_events),
+                                           self._arbiter)
+            self.dropped += int(dropped)
+            batch = EventBatch(batch.x, batch.y, t_out, batch.p, batch.signal, batch.noise_kind)
+            if dropped:
+                batch = batch.select(keep)
+            joined = EventBatch.concatenate([self._read, batch])
+            cut = int(np.searchsorted(joined.t, t1, side="right"))
+            batch, self._read = joined.select(slice(0, cut)), joined.select(slice(cut, None))
+        return batch
+
+    def counts(self) -> dict:
+        """What the readout dropped and what is still held after the last frame (events)."""
+        return {"readout_dropped": int(self.dropped), "held_at_end": int(self.held)}
+
+
+def _with_kinds(batch: EventBatch) -> EventBatch:
+    """The batch with signal flags and noise kinds (all signal if it had none)."""
+    n = len(batch)
+    sig = batch.signal if batch.signal is not None else np.ones(n, bool)
+    kind = batch.noise_kind if batch.noise_kind is not None else np.where(sig, 0, SHOT).astype(np.uint8)
+    return EventBatch(batch.x, batch.y, batch.t, batch.p, sig, kind)
