@@ -181,9 +181,20 @@ def noise_rate(text: str) -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'")
+        raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'") from None
     if not value >= 0:
         raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is >= 0 events per pixel per second")
+    return value
+
+
+def event_seed(text: str) -> int:
+    """An --event-seed value: an integer 0..2**63-1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer seed") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"{text}: an event seed lies in 0..2**63-1")
     return value
 
 
@@ -195,7 +206,7 @@ def main() -> None:
     parser.add_argument("--preset", action="append", default=[], help="sensor preset (repeatable; default ideal)")
     parser.add_argument("--noise-hz", type=noise_rate, nargs="+",
                         help="shot-noise rates, events per pixel per second, or 'preset' for the preset's own")
-    parser.add_argument("--event-seed", type=int, nargs="+", help="event seeds (default: the sequence's own)")
+    parser.add_argument("--event-seed", type=event_seed, nargs="+", help="event seeds (default: the sequence's own)")
     parser.add_argument("--picture-segment", type=int, help="also write segment.png: this segment under every variant")
     parser.add_argument("--out", help="output directory (default runs/robustness-<name>-<time>)")
     parser.add_argument("--max-segments", type=int)
@@ -204,6 +215,13 @@ def main() -> None:
     from dvsot.errors import UserError
 
     try:
+        if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run
+            from dvsot.dataset import Dataset
+
+            with Dataset(args.sequence) as ds:
+                if not 0 <= args.picture_segment < ds.num_segments:
+                    raise UserError(f"--picture-segment: {args.picture_segment} is not a segment of {args.sequence} "
+                                    f"(0..{ds.num_segments - 1})")
         out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
         rows = sweep(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
                      args.max_segments, args.jobs, args.event_seed)

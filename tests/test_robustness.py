@@ -99,3 +99,34 @@ def test_noise_rate_arguments():
     for bad in ("-1", "nan", "lots"):
         with pytest.raises(argparse.ArgumentTypeError):
             noise_rate(bad)
+
+
+def test_a_picture_segment_outside_the_sequence_is_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    import sys
+
+    from benchmarks.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)  # 20 ms: segments 0 and 1
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct",
+                                      "--picture-segment", "2", "--out", str(tmp_path / "out")])
+    with pytest.raises(SystemExit) as exc:
+        main()
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--picture-segment: 2 is not a segment of" in err and "(0..1)" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_picture_shows_every_variant_of_a_sweep(tmp_path, monkeypatch):
+    import sys
+
+    from benchmarks.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--preset", "ideal",
+                                      "--preset", "davis346", "--event-seed", "4", "5", "--picture-segment", "1",
+                                      "--out", str(tmp_path / "out")])
+    main()
+    assert (tmp_path / "out" / "segment.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.h5")) == [
+        "davis346_seed4.h5", "davis346_seed5.h5", "ideal_seed4.h5", "ideal_seed5.h5"]
