@@ -80,3 +80,45 @@ def save_figure(fig, out_png: str | os.PathLike, dpi: int) -> Path:
     finally:
         plt.close(fig)
     return Path(out_png)
+
+
+def plot_segment_side_by_side(files: Mapping[str, str | os.PathLike], segment: int, out_png: str | os.PathLike,
+                              background: str = "white", title: str | None = None) -> Path:
+    """Write a PNG with one panel per dataset file: the events of one segment (ON red, OFF blue, the pixel's
+    last event) with its ground-truth box (green), titled with the label, the events and the segment's span in
+    ms; the files must share the sensor size. Returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dvsot.dataset import Dataset
+    from dvsot.dataset.preview import GT_COLOUR, draw_box, event_frame
+
+    if not files:
+        raise ValueError("plot_segment_side_by_side: no files to draw")
+    panels, size = [], None
+    for label, path in files.items():
+        with Dataset(path) as ds:
+            if size is not None and (ds.width, ds.height) != size:
+                raise ValueError(f"{path}: {ds.width}x{ds.height} sensor, but the first file's is {size[0]}x{size[1]}")
+            size = (ds.width, ds.height)
+            if not 0 <= segment < ds.num_segments:
+                raise ValueError(f"{path}: segment {segment} out of range 0..{ds.num_segments - 1}")
+            seg = ds.segment(segment)
+        img = event_frame(seg.events, size[0], size[1], background)
+        draw_box(img, seg.box, GT_COLOUR)
+        on = int(np.count_nonzero(seg.events.p > 0)) if len(seg.events) else 0
+        panels.append((label, img, len(seg.events), on, seg.t0_us, seg.t1_us))
+    width, height = size
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.6 * len(panels), 3.6 * height / width + 0.7), squeeze=False)
+    for ax, (label, img, n, on, t0, t1) in zip(axes[0], panels):
+        ax.imshow(img, interpolation="nearest")
+        ax.set_title(f"{plot_text(label)}: {n:,} events ({on:,} ON)\n{t0 / 1000:g}-{t1 / 1000:g} ms", fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if title:
+        fig.suptitle(plot_text(title), fontsize=10)
+    fig.tight_layout()
+    Path(out_png).parent.mkdir(parents=True, exist_ok=True)
+    return save_figure(fig, out_png, dpi=110)

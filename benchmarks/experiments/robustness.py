@@ -1,16 +1,21 @@
 """ARscore per tracker against the sensor model: one sequence's kept frames re-simulated under presets and noise rates.
 
     python -m benchmarks.experiments.robustness SEQUENCE.h5 FRAMES_DIR --tracker rct [--tracker sctn ...]
-        [--preset ideal --preset davis346 ...] [--noise-hz 0 1 5 ...] [--out DIR] [--max-segments N] [--jobs N]
+        [--preset ideal --preset davis346 ...] [--noise-hz preset 0 1 5 ...] [--event-seed 1 2 3]
+        [--picture-segment N] [--out DIR] [--max-segments N] [--jobs N]
 
 FRAMES_DIR holds the sequence's rendered luma frames (`dvsot generate SCENE --keep-frames FRAMES_DIR`: one
 NNNNNN.npy per render sample, linear intensity); SEQUENCE.h5 is the file that run wrote, whose /boxes hold
 the sample times and the ground truth. Each variant (every --preset, default ideal, times every
---noise-hz, the shot-noise rate in events per pixel per second that overrides the preset's; default: the
-preset's own) re-simulates the frames with the sequence's event seed into OUT/NAME.h5, and every tracker
-runs on every variant (AR protocol). Written to OUT (default runs/robustness-<name>): robustness.md and
-robustness.csv (variant, preset, set and measured noise rate, events, A, R, ARscore per tracker) and
-robustness.png (ARscore per tracker against the measured noise rate, one marker per preset).
+--noise-hz, the shot-noise rate in events per pixel per second that overrides the preset's, or the word
+`preset` for the preset's own; default: the preset's own) re-simulates the frames into OUT/NAME.h5 with
+each --event-seed (default: the sequence's own event seed; with several, NAME ends in _seedN), and every
+tracker runs on every variant (AR protocol). Written to OUT (default runs/robustness-<name>):
+robustness.csv (one row per variant and seed: preset, seed, set and measured noise rate, events, A, R,
+ARscore per tracker), robustness.md (per variant: ARscore per tracker, the mean and the sample standard
+deviation over the seeds when there are several), robustness.png (ARscore per tracker against the measured
+noise rate, one marker per preset, bars of one standard deviation over seeds) and, with
+--picture-segment N, segment.png: that segment's events under every variant of the first seed side by side.
 """
 
 from __future__ import annotations
@@ -24,9 +29,11 @@ from pathlib import Path
 import numpy as np
 
 
-def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path, values: dict) -> dict:
+def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path, values: dict,
+               seed: int | None = None) -> dict:
     """The kept frames of a sequence through the simulator with EventParams values into a new dataset file (same
-    times, boxes and event seed); {events, noise_events, noise_hz (measured, per pixel per second), duration_s}."""
+    times and boxes; the sequence's event seed unless `seed` is given); {events, noise_events, noise_hz
+    (measured, per pixel per second), duration_s, seed}."""
     from dvsot.dataset import Dataset
     from dvsot.errors import UserError
     from dvsot.events import EventParams, EventSimulator
@@ -39,7 +46,8 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     if len(files) != len(track.t):
         raise UserError(f"{frames_dir}: {len(files)} frames (.npy), but {sequence} has {len(track.t)} render samples")
     params = EventParams.parse(values, "robustness variant")
-    seed = int(attrs.get("event_seed", attrs.get("seed", 0)))
+    if seed is None:
+        seed = int(attrs.get("event_seed", attrs.get("seed", 0)))
     sim = EventSimulator(width, height, params, seed)
     out_attrs = {"name": attrs.get("name", Path(sequence).stem), "split": attrs.get("split", ""),
                  "source": str(frames_dir), "simulator": params.model_dump(), "event_seed": seed,
@@ -53,70 +61,141 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
             noise += 0 if batch.signal is None else int(np.count_nonzero(~batch.signal))
     seconds = max(int(track.t[-1]) + 1, duration_us) / 1e6
     return {"events": counts.events, "noise_events": noise, "noise_hz": noise / (width * height) / seconds,
-            "duration_s": seconds}
+            "duration_s": seconds, "seed": seed}
+
+
+def variant_name(preset: str, rate: float | None) -> str:
+    """A variant's name: the preset, with _noiseR when a shot-noise rate overrides the preset's."""
+    return preset if rate is None else f"{preset}_noise{rate:g}"
 
 
 def sweep(sequence: str | Path, frames_dir: str | Path, trackers: list[str], presets: list[str],
-          noise_hz: list[float] | None, out_dir: str | Path, max_segments: int | None = None,
-          jobs: int = 1) -> list[dict]:
-    """Every (preset, noise rate) variant re-simulated and tracked; one row per variant (see the module docstring)."""
+          noise_hz: list[float | None] | None, out_dir: str | Path, max_segments: int | None = None,
+          jobs: int = 1, seeds: list[int] | None = None) -> list[dict]:
+    """Every (preset, noise rate, seed) variant re-simulated and tracked; one row each (see the module docstring).
+    A noise rate of None keeps the preset's own; seeds None: the sequence's own event seed."""
     from benchmarks.evaluation.metrics import scores
     from benchmarks.evaluation.runner import benchmark
+    from dvsot.events import EventParams
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     for preset in presets:
         for rate in (noise_hz if noise_hz else [None]):
-            name = preset if rate is None else f"{preset}_noise{rate:g}"
+            name = variant_name(preset, rate)
             values = {"preset": preset} if rate is None else {"preset": preset, "shot_noise_hz": rate}
-            stats = resimulate(sequence, frames_dir, out_dir / f"{name}.h5", values)
-            from dvsot.events import EventParams
-
-            row = {"variant": name, "preset": preset, "set_shot_noise_hz": EventParams(**values).shot_noise_hz,
-                   "measured_noise_hz": round(stats["noise_hz"], 4), "events": stats["events"]}
-            for result in benchmark(trackers, [out_dir / f"{name}.h5"], jobs=jobs, max_segments=max_segments):
-                s = scores(result.iou)
-                row[f"{result.tracker}_A"], row[f"{result.tracker}_R"] = round(s.accuracy, 4), round(s.robustness, 4)
-                row[f"{result.tracker}_ARscore"] = round(s.arscore, 4)
-                if result.error:
-                    row[f"{result.tracker}_error"] = result.error
-            rows.append(row)
+            for seed in (seeds if seeds else [None]):
+                file = out_dir / (f"{name}.h5" if seed is None or len(seeds) == 1 else f"{name}_seed{seed}.h5")
+                stats = resimulate(sequence, frames_dir, file, values, seed)
+                row = {"variant": name, "preset": preset, "seed": stats["seed"], "file": file.name,
+                       "set_shot_noise_hz": EventParams.parse(values, "robustness variant").shot_noise_hz,
+                       "measured_noise_hz": round(stats["noise_hz"], 4), "events": stats["events"]}
+                for result in benchmark(trackers, [file], jobs=jobs, max_segments=max_segments):
+                    s = scores(result.iou)
+                    row[f"{result.tracker}_A"] = round(s.accuracy, 4)
+                    row[f"{result.tracker}_R"] = round(s.robustness, 4)
+                    row[f"{result.tracker}_ARscore"] = round(s.arscore, 4)
+                    if result.error:
+                        row[f"{result.tracker}_error"] = result.error
+                rows.append(row)
     return rows
 
 
+def summarise(rows: list[dict], trackers: list[str]) -> list[dict]:
+    """One row per variant, in first-seen order: seeds, mean measured noise rate and events, and per tracker the
+    mean ARscore and its sample standard deviation over the variant's seeds (NaN with one seed)."""
+    out = []
+    for name in dict.fromkeys(r["variant"] for r in rows):
+        group = [r for r in rows if r["variant"] == name]
+        row = {"variant": name, "preset": group[0]["preset"], "seeds": len(group),
+               "set_shot_noise_hz": group[0]["set_shot_noise_hz"],
+               "measured_noise_hz": float(np.mean([r["measured_noise_hz"] for r in group])),
+               "events": float(np.mean([r["events"] for r in group]))}
+        for t in trackers:
+            values = np.array([r.get(f"{t}_ARscore", np.nan) for r in group], float)
+            row[f"{t}_ARscore"] = float(np.mean(values))
+            row[f"{t}_ARscore_std"] = float(np.std(values, ddof=1)) if len(values) > 1 else float("nan")
+        out.append(row)
+    return out
+
+
 def write_outputs(rows: list[dict], trackers: list[str], out_dir: Path, title: str) -> None:
-    """robustness.csv, robustness.md and robustness.png in out_dir."""
+    """robustness.csv (every row), robustness.md and robustness.png (per variant, over its seeds) in out_dir."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from benchmarks.analysis.pictures import save_figure
+    from dvsot.runtime.outputs import replacing
+
+    out_dir = Path(out_dir)
     keys = list(dict.fromkeys(k for row in rows for k in row))
-    with open(out_dir / "robustness.csv", "w", newline="") as f:
+    with replacing(out_dir / "robustness.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, keys)
         w.writeheader()
         w.writerows(rows)
+    summary = summarise(rows, trackers)
+    several = any(r["seeds"] > 1 for r in summary)
     head = ["variant", "set shot noise, Hz", "measured noise, Hz/px", "events"] + [f"{t} ARscore" for t in trackers]
+    if several:
+        head.insert(1, "seeds")
     lines = [f"# Robustness: {title}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for row in rows:
-        cells = [row["variant"], f"{row['set_shot_noise_hz']:g}", f"{row['measured_noise_hz']:g}",
-                 f"{row['events']:,}"] + [f"{row.get(f'{t}_ARscore', float('nan')):.3f}" for t in trackers]
+    for row in summary:
+        cells = [row["variant"], f"{row['set_shot_noise_hz']:g}", f"{row['measured_noise_hz']:.4g}",
+                 f"{row['events']:,.0f}"]
+        for t in trackers:
+            mean, std = row[f"{t}_ARscore"], row[f"{t}_ARscore_std"]
+            cells.append(f"{mean:.3f} ± {std:.3f}" if several and np.isfinite(std) else f"{mean:.3f}")
+        if several:
+            cells.insert(1, str(row["seeds"]))
         lines.append("| " + " | ".join(cells) + " |")
-    (out_dir / "robustness.md").write_text("\n".join(lines) + "\n")
-    fig, ax = plt.subplots(figsize=(6, 4))
-    markers = dict(zip(dict.fromkeys(r["preset"] for r in rows), "osD^v<>ph*"))
-    for t in trackers:
+    if several:
+        lines += ["", "ARscore: mean ± sample standard deviation over the event seeds."]
+    with replacing(out_dir / "robustness.md") as tmp:
+        Path(tmp).write_text("\n".join(lines) + "\n")
+    fig, ax = plt.subplots(figsize=(6.4, 4))
+    markers = dict(zip(dict.fromkeys(r["preset"] for r in summary), "osD^v<>ph*"))
+    colours = plt.get_cmap("tab10")
+    for k, t in enumerate(trackers):
         for preset, marker in markers.items():
-            pts = sorted((r["measured_noise_hz"], r.get(f"{t}_ARscore", np.nan)) for r in rows if r["preset"] == preset)
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=marker, label=f"{t} ({preset})")
+            pts = sorted((r["measured_noise_hz"], r[f"{t}_ARscore"], r[f"{t}_ARscore_std"])
+                         for r in summary if r["preset"] == preset)
+            ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[np.nan_to_num(p[2]) for p in pts],
+                        marker=marker, color=colours(k % 10), capsize=2, lw=1, label=f"{t} ({preset})")
+    ax.set_xscale("symlog", linthresh=0.1)
     ax.set_xlabel("noise events per pixel per second (measured)")
     ax.set_ylabel("ARscore")
     ax.set_title(title)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, ncol=len(trackers))
+    ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out_dir / "robustness.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out_dir / "robustness.png", dpi=100)
+
+
+def noise_rate(text: str) -> float | None:
+    """A --noise-hz value: a rate in events per pixel per second (>= 0), or `preset` (None: the preset's own)."""
+    if text == "preset":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'") from None
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is >= 0 events per pixel per second")
+    return value
+
+
+def event_seed(text: str) -> int:
+    """An --event-seed value: an integer 0..2**63-1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer seed") from None
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"{text}: an event seed lies in 0..2**63-1")
+    return value
 
 
 def main() -> None:
@@ -125,7 +204,10 @@ def main() -> None:
     parser.add_argument("frames", help="the kept frames directory (NNNNNN.npy per render sample)")
     parser.add_argument("--tracker", action="append", required=True)
     parser.add_argument("--preset", action="append", default=[], help="sensor preset (repeatable; default ideal)")
-    parser.add_argument("--noise-hz", type=float, nargs="+", help="shot-noise rates, events per pixel per second")
+    parser.add_argument("--noise-hz", type=noise_rate, nargs="+",
+                        help="shot-noise rates, events per pixel per second, or 'preset' for the preset's own")
+    parser.add_argument("--event-seed", type=event_seed, nargs="+", help="event seeds (default: the sequence's own)")
+    parser.add_argument("--picture-segment", type=int, help="also write segment.png: this segment under every variant")
     parser.add_argument("--out", help="output directory (default runs/robustness-<name>-<time>)")
     parser.add_argument("--max-segments", type=int)
     parser.add_argument("--jobs", type=int, default=1)
@@ -133,10 +215,28 @@ def main() -> None:
     from dvsot.errors import UserError
 
     try:
+        if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run
+            from dvsot.dataset import Dataset
+
+            with Dataset(args.sequence) as ds:
+                if not 0 <= args.picture_segment < ds.num_segments:
+                    raise UserError(f"--picture-segment: {args.picture_segment} is not a segment of {args.sequence} "
+                                    f"(0..{ds.num_segments - 1})")
         out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
         rows = sweep(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
-                     args.max_segments, args.jobs)
+                     args.max_segments, args.jobs, args.event_seed)
         write_outputs(rows, args.tracker, out, Path(args.sequence).stem)
+        if args.picture_segment is not None:
+            from benchmarks.analysis.pictures import plot_segment_side_by_side
+
+            first = {}
+            for row in rows:
+                first.setdefault(row["variant"], out / row["file"])
+            try:
+                plot_segment_side_by_side(first, args.picture_segment, out / "segment.png",
+                                          title=f"{Path(args.sequence).stem}, segment {args.picture_segment}")
+            except ValueError as exc:
+                raise UserError(str(exc)) from None
     except UserError as exc:  # one line, exit 2, as dvsot's commands do
         print(f"benchmarks.experiments.robustness: {exc}", file=sys.stderr)
         raise SystemExit(2) from None

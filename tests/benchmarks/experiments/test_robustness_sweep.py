@@ -69,3 +69,64 @@ def test_frames_that_do_not_match_the_sequence_are_refused(tmp_path):
     with pytest.raises(UserError, match=r"11 frames \(\.npy\), but .* has 12 render samples"):
         resimulate(seq, frames, tmp_path / "x.h5", {"preset": "davis346"})
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_several_event_seeds_give_a_row_each_and_a_mean_with_its_spread(tmp_path):
+    from benchmarks.experiments.robustness import summarise, sweep, write_outputs
+
+    seq, frames = kept_sequence(tmp_path)
+    rows = sweep(seq, frames, ["rct"], ["noisy"], [None, 50.0], tmp_path / "out", max_segments=4, seeds=[1, 2])
+    assert [(r["variant"], r["seed"]) for r in rows] == [("noisy", 1), ("noisy", 2), ("noisy_noise50", 1),
+                                                         ("noisy_noise50", 2)]
+    assert rows[0]["set_shot_noise_hz"] == 5 and rows[2]["set_shot_noise_hz"] == 50
+    assert rows[0]["events"] != rows[1]["events"]  # another seed: other mismatch and noise
+    assert (tmp_path / "out" / "noisy_noise50_seed2.h5").exists()
+    summary = summarise(rows, ["rct"])
+    scores = [rows[2]["rct_ARscore"], rows[3]["rct_ARscore"]]
+    assert summary[1]["seeds"] == 2 and summary[1]["rct_ARscore"] == pytest.approx(np.mean(scores))
+    assert summary[1]["rct_ARscore_std"] == pytest.approx(abs(scores[0] - scores[1]) / np.sqrt(2))
+    write_outputs(rows, ["rct"], tmp_path / "out", "seq")
+    text = (tmp_path / "out" / "robustness.md").read_text()
+    assert "| seeds |" in text and f"{summary[1]['rct_ARscore']:.3f} ± " in text
+
+
+def test_noise_rate_arguments():
+    import argparse
+
+    from benchmarks.experiments.robustness import noise_rate
+
+    assert noise_rate("preset") is None and noise_rate("2.5") == 2.5
+    for bad in ("-1", "nan", "lots"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            noise_rate(bad)
+
+
+def test_a_picture_segment_outside_the_sequence_is_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    import sys
+
+    from benchmarks.experiments.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)  # 20 ms: segments 0 and 1
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct",
+                                      "--picture-segment", "2", "--out", str(tmp_path / "out")])
+    with pytest.raises(SystemExit) as exc:
+        main()
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--picture-segment: 2 is not a segment of" in err and "(0..1)" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_picture_shows_every_variant_of_a_sweep(tmp_path, monkeypatch):
+    import sys
+
+    from benchmarks.experiments.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--preset", "ideal",
+                                      "--preset", "davis346", "--event-seed", "4", "5", "--picture-segment", "1",
+                                      "--out", str(tmp_path / "out")])
+    main()
+    assert (tmp_path / "out" / "segment.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.h5")) == [
+        "davis346_seed4.h5", "davis346_seed5.h5", "ideal_seed4.h5", "ideal_seed5.h5"]
