@@ -1,6 +1,7 @@
 """Benchmark suite: trackers behind one interface, the A/R/ARscore protocol, tables, performance scripts.
 
-Public names (each imported on first use): `benchmark` (trackers x dataset files -> `SequenceResult`s),
+Public names (each imported on first use): `run_benchmark` (`dvsot bench`: every input checked by
+`plan_benchmark`, the runs, the tables written), `benchmark` (trackers x dataset files -> `SequenceResult`s),
 `run_sequence`, the tracker registry (`get_tracker`, `register`, `available_trackers`, `Tracker`), the
 metrics (`scores`, `pooled`, `ar_score`, `Scores`), `summarise` (results -> a typed `Summary` of `Cell`s,
 the tables' data; `summarise_ope` for one-pass runs), `write_report` (a run's tables,
@@ -11,6 +12,8 @@ per-sequence files, pictures and manifest, written together), `energy_table` (th
 from dvsot.lazy import lazy_attributes
 
 _API = {
+    "run_benchmark": "benchmarks.evaluation.plan",
+    "plan_benchmark": "benchmarks.evaluation.plan",
     "benchmark": "benchmarks.evaluation.runner",
     "run_one": "benchmarks.evaluation.runner",
     "SequenceResult": "benchmarks.evaluation.protocol",

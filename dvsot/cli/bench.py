@@ -23,8 +23,8 @@ Outputs are written only when every run has finished, as temp files renamed into
 (then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
 or bad input never leaves a table half-written, nor new tables beside old pictures.
 
-The command checks its flags and calls the library: benchmarks.benchmark (the runs),
-benchmarks.summarise, benchmarks.analysis.energy_table and benchmarks.write_report (the outputs).
+The command parses its flags and calls the library: benchmarks.run_benchmark (the checks, the runs,
+the tables and the outputs; benchmarks/evaluation/plan.py).
 
 Exit status:
   0  every tracker ran on every sequence; tables written.
@@ -37,13 +37,9 @@ Exit status:
 from __future__ import annotations
 
 import argparse
-import re
 import sys
-from dataclasses import dataclass, field
-from pathlib import Path
 
-DEFAULT_DATA = "data/dvsot21"
-CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
+from benchmarks.evaluation.plan import DEFAULT_DATA, _options  # noqa: F401  (_options: this module's old name)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -78,257 +74,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-@dataclass
-class Plan:
-    """Everything a run needs, checked before any tracking starts."""
-
-    trackers: list[str]
-    files: list[Path]
-    sequences: dict[str, Path]
-    options: dict[str, dict]
-    out_dir: Path
-    jobs: int
-    model: object | None = None  # the SCTN model of the checkpoint, for the energy table
-    ann_models: dict = field(default_factory=dict)  # {"twin": ..., "siamfc": ...} for the energy table's ANN rows
-    notes: tuple[str, ...] = ()  # lines printed under the energy table
-    tasks: list[tuple[str, str]] = field(default_factory=list)
-
-
-def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
-    """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
-    from dvsot.scene import yaml_value
-    from dvsot.errors import UserError
-
-    out: dict[str, dict] = {}
-    for spec in specs:
-        name, _, rest = spec.partition(".")
-        key, eq, raw = rest.partition("=")
-        if not (name and key and eq):
-            raise UserError(f"--option {spec!r}: expected TRACKER.KEY=VALUE")
-        if name not in trackers:
-            raise UserError(f"--option {spec!r}: tracker '{name}' is not in this run")
-        out.setdefault(name, {})[key] = yaml_value(raw)  # as in a scene file: false, False, 0.05, 1e-3, text
-    return out
-
-
-def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
-    """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), the default data if no --data."""
-    from benchmarks.evaluation.runner import find_sequences
-    from dvsot.errors import UserError
-
-    if specs is None:
-        if not Path(DEFAULT_DATA).is_dir():
-            raise UserError(f"{DEFAULT_DATA}: no default data; make it with "
-                            f"`dvsot generate blender_scenes/*.yaml --out-dir {DEFAULT_DATA}` or pass --data")
-        specs = [DEFAULT_DATA]
-    return find_sequences(specs, None if split == "any" else split)
-
-
-def _option_spec(tracker: str, key: str | None, specs: list[str]) -> str:
-    """The --option text that set tracker.key (the last one, as it wins), or all of the tracker's."""
-    mine = [s for s in specs if s.startswith(f"{tracker}.")]
-    if key is not None:
-        hits = [s for s in mine if s.partition(".")[2].partition("=")[0] == key]
-        if hits:
-            return hits[-1]
-    return " ".join(mine)
-
-
-def _option_key(exc: BaseException, options: dict) -> str | None:
-    """The option a constructor rejected: pydantic's field, or Python's 'unexpected keyword argument'."""
-    from pydantic import ValidationError
-
-    if isinstance(exc, ValidationError) and exc.errors()[0]["loc"]:
-        return str(exc.errors()[0]["loc"][0])
-    m = re.search(r"unexpected keyword argument '(\w+)'", str(exc))
-    if m:
-        return m.group(1)
-    return next(iter(options)) if len(options) == 1 else None
-
-
-def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
-    """The one-line UserError for a tracker that its --option values did not build."""
-    from dvsot.errors import UserError
-
-    from benchmarks.evaluation.models import error_text
-
-    detail = error_text(exc)
-    if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
-        return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
-    key = _option_key(exc, options)
-    if key is not None:
-        detail = detail.removeprefix(f"field '{key}': ")
-        if detail == "unknown field" or "unexpected keyword argument" in detail:
-            detail = f"tracker '{name}' has no option '{key}'"
-        elif "takes no arguments" in detail:
-            detail = f"tracker '{name}' takes no options"
-    return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
-
-
-def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
-    """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
-    from benchmarks.trackers import get_tracker
-    from dvsot.errors import UserError
-
-    for name in trackers:
-        try:
-            get_tracker(name, **options.get(name, {}))
-        except UserError:
-            raise
-        except Exception as exc:
-            raise _option_error(name, options.get(name, {}), exc, specs) from None
-
-
-_WHO_ASKS = {"tables": "--out", "manifest": "--out (the run's manifest)", "plots": "--plots", "video": "--video",
-             "energy": "--out (energy table)"}  # benchmarks.report_files' kinds, as the flags that ask for them
-
-
-def _output_names(args: argparse.Namespace, energy: bool) -> dict[str, str]:
-    """{file name in --out: the flag that asks for it}."""
-    from benchmarks.analysis.report import report_files
-
-    names = report_files(args.protocol, args.plots, args.video, energy)
-    return {name: _WHO_ASKS[kind] for name, kind in names.items()}
-
-
-def check_video(sequence: str, path: Path) -> None:
-    """UserError now if the preview of a sequence would hold more frames in memory than dvsot.limits allows."""
-    from benchmarks.analysis.report import VIDEO_SEGMENTS
-    from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
-    from dvsot.limits import preview_problem
-
-    with Dataset(path) as ds:
-        problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
-    if problem:
-        raise UserError(f"--video {sequence}: {path}: {problem}")
-
-
-def check_outputs(out_dir: Path, names: dict[str, str], inputs: list) -> None:
-    """--out is a directory (or will be made) and none of the files to write in it is a directory or an input."""
-    from dvsot.runtime.outputs import output_dir, output_file
-
-    output_dir(out_dir, "--out")
-    if out_dir.is_dir():
-        for name, flag in names.items():
-            output_file(out_dir / name, flag, inputs)
-
-
-def plan(args: argparse.Namespace) -> Plan:
-    """Check every input and output of the run; UserError (and nothing done) on the first problem."""
-    import os
-    import time
-
-    from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
-    from benchmarks.trackers import load_tracker_module, tracker_class
-    from dvsot.errors import UserError
-    from benchmarks.analysis.sequence_files import per_sequence_files
-    from dvsot.dataset.safe_names import file_stem
-    from dvsot.runtime.outputs import output_dir, run_dir
-    from dvsot.limits import MAX_WORKERS, range_problem
-
-    problem = args.jobs is not None and range_problem("--jobs", args.jobs, 1, MAX_WORKERS)
-    if problem:
-        raise UserError(problem)
-    if args.scheduler:
-        from dvsot.pipeline.scene_runner import parse_scheduler
-
-        parse_scheduler(args.scheduler, "--scheduler")
-    if args.max_segments is not None and args.max_segments < 1:
-        raise UserError(f"--max-segments must be >= 1, got {args.max_segments}")
-    for m in args.tracker_module:
-        load_tracker_module(m, "--tracker-module")
-    trackers = list(dict.fromkeys(args.tracker))
-    for name in trackers:
-        tracker_class(name)
-    options = _options(args.option, trackers)
-    sctn = "sctn" in trackers
-    energy = not args.no_energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
-    if args.checkpoint is not None:
-        takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
-        if not takers:
-            raise UserError(f"--checkpoint {args.checkpoint}: only used by --tracker sctn, sctn_ann or siamfc, "
-                            "none of which is in this run")
-        if len(takers) > 1:
-            raise UserError(f"--checkpoint {args.checkpoint}: {', '.join(takers)} all take a checkpoint; give each "
-                            "its own with --option NAME.checkpoint=PATH")
-        if "checkpoint" in options.get(takers[0], {}):
-            raise UserError(f"--option {takers[0]}.checkpoint: give the checkpoint once, with --checkpoint")
-        options.setdefault(takers[0], {})["checkpoint"] = args.checkpoint
-    out_dir = Path(args.out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
-    sequences = resolve_data(args.data, args.split)
-    files = list(sequences.values())
-    from benchmarks.evaluation.protocol import nothing_to_score
-
-    for f in files:  # else its row would be empty, at exit 0
-        problem = nothing_to_score(f, args.max_segments, reinitialise=args.protocol == "ar")
-        if problem:
-            raise UserError(problem)
-    videos: dict[str, str] = {}
-    for seq in args.video:
-        from benchmarks.analysis.report import video_name
-
-        if videos.get(video_name(seq), seq) != seq:
-            raise UserError(f"--video {seq}: its file name {video_name(seq)} is also --video {videos[video_name(seq)]}'s")
-        videos[video_name(seq)] = seq
-        if seq not in sequences:
-            raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
-        check_video(seq, sequences[seq])
-    check_outputs(out_dir, _output_names(args, energy), files)
-    for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
-        output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
-    # every path under --out, checked now; --out holds this run's files only (benchmarks.analysis.report)
-    run_dir(out_dir, "--out", [*_output_names(args, energy), *per_sequence_files(trackers, sequences, args.protocol)])
-    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
-    check_trackers(trackers, options, args.option)
-    if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
-        model = load_sctn_checkpoint(None)
-    ann_models, notes = energy_ann_models(trackers, options) if energy else ({}, ())
-    tasks = [(t, str(f)) for t in trackers for f in files]
-    jobs = args.jobs or min(2, os.cpu_count() or 1, len(tasks))
-    return Plan(trackers, files, sequences, options, out_dir, jobs, model, ann_models, notes, tasks)
-
-
-def track(p: Plan, args: argparse.Namespace) -> list:
-    """Run every task of the plan (in parallel processes when jobs > 1); results in task order."""
-    from benchmarks.evaluation.runner import benchmark
-
-    return benchmark(p.trackers, p.files, p.options, p.jobs, args.max_segments, args.protocol, args.tracker_module,
-                     progress=not args.quiet, scheduler=args.scheduler)
-
-
 def run(args: argparse.Namespace) -> int:
     """Check everything, run every tracker on every sequence, then print and write the tables (exit 1 on failures)."""
-    from benchmarks.analysis.report import write_report
-    from benchmarks.analysis.tables import summarise, terminal
+    from benchmarks.evaluation.plan import run_benchmark, tables_text
 
-    p = plan(args)
-    results = track(p, args)
-    if args.protocol == "ope":
-        from benchmarks.evaluation.ope import format_ope, summarise_ope
-
-        summary = summarise_ope(results)
-    else:
-        summary = summarise(results)
-    energy = None
-    if p.model is not None and not args.no_energy:
-        from benchmarks.analysis.energy_table import energy_table
-
-        # computed before writing: a crash here leaves --out as it was
-        energy = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
-    print(format_ope(summary) if args.protocol == "ope" else terminal(summary))
-    from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, format_attributes
-
-    print("\nper attribute:\n" + format_attributes(
-        attribute_ope(results) if args.protocol == "ope" else attribute_scores(results), args.protocol))
-    if energy is not None:
-        from benchmarks.analysis.energy_table import format_energy_table
-
-        print(format_energy_table(energy))
-    paths = write_report(p.out_dir, summary, results, protocol=args.protocol, plots=args.plots,
-                         videos={seq: p.sequences[seq] for seq in args.video}, energy=energy)
-    print("written: " + ", ".join(str(x) for x in paths.values()))
-    failed = [r for r in results if r.error]
-    for r in failed:
+    done = run_benchmark(args.tracker, args.data, args.split, args.out, args.jobs, args.scheduler, args.tracker_module,
+                         args.max_segments, args.plots, args.video, args.checkpoint, not args.no_energy, args.option,
+                         args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)))
+    print("written: " + ", ".join(str(x) for x in done.paths.values()))
+    for r in done.failed:
         print(f"dvsot bench: failed: {r.tracker} on {r.sequence}: {r.error}", file=sys.stderr)
-    return 1 if failed else 0
+    return 1 if done.failed else 0

@@ -50,91 +50,21 @@ def _overrides(args: argparse.Namespace) -> dict:
     return out
 
 
-def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool, quiet: bool,
-                 keep_frames: str | None) -> dict:
-    """Worker: load, render, simulate and write one scene (own process when parallel)."""
-    from dvsot.scene import load_scene, read_scene_text
-    from dvsot.pipeline.generate import generate
-
-    cfg = load_scene(scene_path, overrides)
-    if "sensor.width" in overrides and cfg.sensor.fx is not None:
-        from dvsot.errors import UserError
-
-        raise UserError(f"{scene_path}: --resolution cannot rescale a lens given as fx/cx/cy")
-    return generate(cfg, out_path, read_scene_text(scene_path), progress=not quiet, keep_frames=keep_frames,
-                    preview=preview)
+# how dvsot.pipeline's messages name their settings here
+_LABELS = {"output": "-o", "out_dir": "--out-dir", "preview": "--preview", "keep_frames": "--keep-frames",
+           "resolution": "--resolution", "variants": "--variants", "retries": "--retries", "scheduler": "--scheduler"}
 
 
-def _check_preview_size(path: str, cfg) -> None:
-    """UserError before rendering if the --preview of a scene would hold more frames in memory than allowed."""
-    from dvsot.dataset.preview import check_preview_size
-
-    check_preview_size(path, cfg, "--preview")
-
-
-def _outputs(args: argparse.Namespace, paths: list[str], configs: list) -> list:
-    """The dataset file of each scene, every output path checked (and --out-dir made) before rendering."""
-
-    from dvsot.scene import asset_paths
-    from dvsot.errors import UserError
-    from dvsot.runtime.outputs import output_dir, output_file
-
-    inputs = paths + [a for c in configs for a in asset_paths(c)]  # scene files, meshes, image textures
-    if args.output:
-        outs = [output_file(args.output, "-o", inputs)]
-    else:
-        out_dir = output_dir(args.out_dir or "out", "--out-dir")
-        outs = [out_dir / f"{c.name}.h5" for c in configs]
-    seen: dict = {}
-    for o, p, c in zip(outs, paths, configs):
-        if o.is_dir() or o.exists():
-            output_file(o, f"the output of {p}", inputs)
-        if o.resolve() in seen:
-            raise UserError(f"{p}: scene name gives the same output {o} as {seen[o.resolve()]}; rename one")
-        seen[o.resolve()] = p
-        gif = o.with_suffix(".gif")
-        if args.preview:
-            _check_preview_size(p, c)
-        if args.preview and (gif.is_dir() or gif == o):
-            raise UserError(f"{gif}: --preview would write this path, " + ("a directory" if gif.is_dir() else
-                                                                            "the dataset file itself"))
-    if args.keep_frames:
-        from dvsot.pipeline.generate import check_keep_frames
-
-        output_dir(args.keep_frames, "--keep-frames")
-        for k in _keep_dirs(args.keep_frames, configs):
-            check_keep_frames(k, "--keep-frames")
-    if not args.output:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    return outs
-
-
-def _warn_nonsense(paths: list[str], configs: list) -> None:
-    """One stderr line per scene whose target is never in view, or always fills the frame (still rendered)."""
+def _warn(text: str) -> None:
     import sys
 
-    from dvsot.scene.checks import visibility_warnings
-
-    for path, cfg in zip(paths, configs):
-        for warning in visibility_warnings(cfg):
-            print(f"dvsot generate: warning: {path}: {warning}", file=sys.stderr)
-
-
-def _keep_dirs(keep: str | None, configs: list) -> list:
-    """Where each scene keeps its frames: --keep-frames itself for one scene, <it>/<name> for several."""
-    from pathlib import Path
-
-    if not keep:
-        return [None] * len(configs)
-    return [keep] if len(configs) == 1 else [str(Path(keep) / c.name) for c in configs]
+    print(f"dvsot generate: warning: {text}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
     """Validate every scene first (nothing is rendered if one is bad), then render them."""
     import glob
     import json
-
-    from pathlib import Path
 
     from dvsot.errors import UserError
 
@@ -156,22 +86,10 @@ def run(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     if args.variants is not None or args.scheduler or args.dry_run or args.resume:
         return _many(args, paths, overrides)
-    from dvsot.pipeline.many_scenes import load_plain_scene
+    from dvsot.pipeline.scene_files import generate_scenes
 
-    configs = [load_plain_scene(p, overrides) for p in paths]  # all bad input is reported before any rendering
-    _warn_nonsense(paths, configs)
-    if args.output and len(paths) > 1:
-        raise UserError("-o names one output file; use --out-dir for several scenes")
-    outs = _outputs(args, paths, configs)
-    jobs = [(p, str(o), overrides, args.preview, args.quiet or len(paths) > 1 and args.jobs > 1, k)
-            for p, o, k in zip(paths, outs, _keep_dirs(args.keep_frames, configs))]
-    if args.jobs == 1 or len(jobs) == 1:
-        summaries = [generate_one(*j) for j in jobs]
-    else:  # local:N; its workers die with this process and commit nothing once it stops (dvsot.runtime.dask_tasks)
-        from dvsot.runtime.dask_tasks import map_tasks
-
-        summaries = map_tasks(f"local:{min(args.jobs, len(jobs))}", generate_one, jobs,
-                              lease_dir=Path(outs[0]).resolve().parent)
+    summaries = generate_scenes(paths, args.output, args.out_dir, overrides, args.preview, args.jobs, args.keep_frames,
+                                args.quiet, _warn, _LABELS)
     for s in summaries:
         if args.quiet:
             print(json.dumps(s))
@@ -180,16 +98,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# how dvsot.pipeline.many_scenes's messages name its settings here
-_LABELS = {"out_dir": "--out-dir", "preview": "--preview", "retries": "--retries", "scheduler": "--scheduler"}
-
-
 def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     """A template's variants or several scenes, each its own task (dvsot.pipeline.many_scenes); exit 1 if any finally failed."""
     import json
     import sys
 
-    from dvsot.pipeline.many_scenes import generate_many, scene_tasks, variant_tasks
+    from dvsot.pipeline.many_scenes import generate_many, many_tasks
     from dvsot.errors import UserError
     from dvsot.pipeline.scene_runner import summary_line
 
@@ -197,17 +111,9 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
         raise UserError("--variants, --scheduler, --dry-run and --resume write <name>.h5 files and a manifest into "
                         "--out-dir; -o and --keep-frames do not apply")
 
-    def warn(text: str) -> None:
-        print(f"dvsot generate: warning: {text}", file=sys.stderr)
-
-    if args.variants is not None:
-        if len(paths) != 1:
-            raise UserError(f"--variants draws from one template file, got {len(paths)}")
-        # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
-        tasks, inputs = variant_tasks(paths[0], args.variants, args.out_dir or "out", overrides, args.preview,
-                                      warn if args.dry_run else None, _LABELS)
-    else:
-        tasks, inputs = scene_tasks(paths, args.out_dir or "out", overrides, args.preview, warn, _LABELS)
+    # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
+    tasks, inputs = many_tasks(paths, args.out_dir or "out", args.variants, overrides, args.preview,
+                               _warn if args.dry_run or args.variants is None else None, _LABELS)
     if args.dry_run:
         for t in tasks:
             print(f"# ---- {t.name}: {t.output}\n{t.text}")
@@ -225,7 +131,7 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
                   file=sys.stderr, flush=True)
         if rec.get("warnings") and rec.get("variant") is not None:
             for w in rec["warnings"]:
-                warn(f"{rec['name']}: {w}")
+                _warn(f"{rec['name']}: {w}")
 
     manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report,
                              _LABELS)

@@ -82,6 +82,17 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
     return tasks, inputs
 
 
+def many_tasks(paths: list[str], out_dir: str | Path, variants: int | None = None, overrides: dict | None = None,
+               preview: bool = False, warn: Callable[[str], None] | None = None,
+               labels: Mapping[str, str] | None = None) -> tuple[list[SceneTask], list[Path]]:
+    """`variants` drawn from one template (variant_tasks), or else each scene file a task (scene_tasks)."""
+    if variants is not None:
+        if len(paths) != 1:
+            raise UserError(f"{label('variants', labels)} draws from one template file, got {len(paths)}")
+        return variant_tasks(paths[0], variants, out_dir, overrides, preview, warn, labels)
+    return scene_tasks(paths, out_dir, overrides, preview, warn, labels)
+
+
 def check_outputs(tasks: list[SceneTask], out_dir: str | Path, inputs: list[Path],
                   labels: Mapping[str, str] | None = None) -> Path:
     """Check every output path (and the manifest's) before any work; make out_dir; the manifest's path."""

@@ -1,0 +1,323 @@
+"""A benchmark run checked whole before it starts (trackers, options, data, checkpoint, outputs), then run.
+
+`run_benchmark` is `dvsot bench`: `plan_benchmark` checks every input and output, `benchmark` runs every
+tracker on every sequence, and the tables, energy table and report are made from the results and written
+together (benchmarks.analysis.report), only when every run has finished.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+DEFAULT_DATA = "data/dvsot21"
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
+
+
+@dataclass
+class Plan:
+    """Everything a run needs, checked before any tracking starts."""
+
+    trackers: list[str]
+    files: list[Path]
+    sequences: dict[str, Path]
+    options: dict[str, dict]
+    out_dir: Path
+    jobs: int
+    model: object | None = None  # the SCTN model of the checkpoint, for the energy table
+    ann_models: dict = field(default_factory=dict)  # {"twin": ..., "siamfc": ...} for the energy table's ANN rows
+    notes: tuple[str, ...] = ()  # lines printed under the energy table
+    tasks: list[tuple[str, str]] = field(default_factory=list)
+    max_segments: int | None = None
+    protocol: str = "ar"
+    tracker_modules: list[str] = field(default_factory=list)
+    scheduler: str | None = None
+    videos: list[str] = field(default_factory=list)
+
+
+def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
+    """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
+    from dvsot.scene import yaml_value
+    from dvsot.errors import UserError
+
+    out: dict[str, dict] = {}
+    for spec in specs:
+        name, _, rest = spec.partition(".")
+        key, eq, raw = rest.partition("=")
+        if not (name and key and eq):
+            raise UserError(f"--option {spec!r}: expected TRACKER.KEY=VALUE")
+        if name not in trackers:
+            raise UserError(f"--option {spec!r}: tracker '{name}' is not in this run")
+        out.setdefault(name, {})[key] = yaml_value(raw)  # as in a scene file: false, False, 0.05, 1e-3, text
+    return out
+
+
+def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
+    """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), the default data if no --data."""
+    from benchmarks.evaluation.runner import find_sequences
+    from dvsot.errors import UserError
+
+    if specs is None:
+        if not Path(DEFAULT_DATA).is_dir():
+            raise UserError(f"{DEFAULT_DATA}: no default data; make it with "
+                            f"`dvsot generate blender_scenes/*.yaml --out-dir {DEFAULT_DATA}` or pass --data")
+        specs = [DEFAULT_DATA]
+    return find_sequences(specs, None if split == "any" else split)
+
+
+def _option_spec(tracker: str, key: str | None, specs: list[str]) -> str:
+    """The --option text that set tracker.key (the last one, as it wins), or all of the tracker's."""
+    mine = [s for s in specs if s.startswith(f"{tracker}.")]
+    if key is not None:
+        hits = [s for s in mine if s.partition(".")[2].partition("=")[0] == key]
+        if hits:
+            return hits[-1]
+    return " ".join(mine)
+
+
+def _option_key(exc: BaseException, options: dict) -> str | None:
+    """The option a constructor rejected: pydantic's field, or Python's 'unexpected keyword argument'."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError) and exc.errors()[0]["loc"]:
+        return str(exc.errors()[0]["loc"][0])
+    m = re.search(r"unexpected keyword argument '(\w+)'", str(exc))
+    if m:
+        return m.group(1)
+    return next(iter(options)) if len(options) == 1 else None
+
+
+def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
+    """The one-line UserError for a tracker that its --option values did not build."""
+    from dvsot.errors import UserError
+
+    from benchmarks.evaluation.models import error_text
+
+    detail = error_text(exc)
+    if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
+        return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
+    key = _option_key(exc, options)
+    if key is not None:
+        detail = detail.removeprefix(f"field '{key}': ")
+        if detail == "unknown field" or "unexpected keyword argument" in detail:
+            detail = f"tracker '{name}' has no option '{key}'"
+        elif "takes no arguments" in detail:
+            detail = f"tracker '{name}' takes no options"
+    return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
+
+
+def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
+    """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
+    from benchmarks.trackers import get_tracker
+    from dvsot.errors import UserError
+
+    for name in trackers:
+        try:
+            get_tracker(name, **options.get(name, {}))
+        except UserError:
+            raise
+        except Exception as exc:
+            raise _option_error(name, options.get(name, {}), exc, specs) from None
+
+
+_WHO_ASKS = {"tables": "--out", "manifest": "--out (the run's manifest)", "plots": "--plots", "video": "--video",
+             "energy": "--out (energy table)"}  # benchmarks.report_files' kinds, as the flags that ask for them
+
+
+def _output_names(protocol: str, plots: bool, videos: Sequence[str], energy: bool) -> dict[str, str]:
+    """{file name in --out: the flag that asks for it}."""
+    from benchmarks.analysis.report import report_files
+
+    names = report_files(protocol, plots, list(videos), energy)
+    return {name: _WHO_ASKS[kind] for name, kind in names.items()}
+
+
+def check_video(sequence: str, path: Path) -> None:
+    """UserError now if the preview of a sequence would hold more frames in memory than dvsot.limits allows."""
+    from benchmarks.analysis.report import VIDEO_SEGMENTS
+    from dvsot.dataset import Dataset
+    from dvsot.errors import UserError
+    from dvsot.limits import preview_problem
+
+    with Dataset(path) as ds:
+        problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
+    if problem:
+        raise UserError(f"--video {sequence}: {path}: {problem}")
+
+
+def check_outputs(out_dir: Path, names: dict[str, str], inputs: list) -> None:
+    """--out is a directory (or will be made) and none of the files to write in it is a directory or an input."""
+    from dvsot.runtime.outputs import output_dir, output_file
+
+    output_dir(out_dir, "--out")
+    if out_dir.is_dir():
+        for name, flag in names.items():
+            output_file(out_dir / name, flag, inputs)
+
+
+def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, split: str = "test",
+                   out: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
+                   tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
+                   videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
+                   options: Sequence[str] = (), protocol: str = "ar") -> Plan:
+    """Check every input and output of a run; UserError (and nothing done) on the first problem.
+
+    Messages name the settings as `dvsot bench`'s flags do; options are TRACKER.KEY=VALUE strings.
+    """
+    import os
+    import time
+
+    from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
+    from benchmarks.trackers import load_tracker_module, tracker_class
+    from dvsot.errors import UserError
+    from benchmarks.analysis.sequence_files import per_sequence_files
+    from dvsot.dataset.safe_names import file_stem
+    from dvsot.runtime.outputs import output_dir, run_dir
+    from dvsot.limits import MAX_WORKERS, range_problem
+
+    no_energy, option_specs = not energy, list(options)
+    problem = jobs is not None and range_problem("--jobs", jobs, 1, MAX_WORKERS)
+    if problem:
+        raise UserError(problem)
+    if scheduler:
+        from dvsot.pipeline.scene_runner import parse_scheduler
+
+        parse_scheduler(scheduler, "--scheduler")
+    if max_segments is not None and max_segments < 1:
+        raise UserError(f"--max-segments must be >= 1, got {max_segments}")
+    for m in tracker_modules:
+        load_tracker_module(m, "--tracker-module")
+    trackers = list(dict.fromkeys(trackers))
+    for name in trackers:
+        tracker_class(name)
+    options = _options(option_specs, trackers)
+    sctn = "sctn" in trackers
+    energy = not no_energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
+    if checkpoint is not None:
+        takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
+        if not takers:
+            raise UserError(f"--checkpoint {checkpoint}: only used by --tracker sctn, sctn_ann or siamfc, "
+                            "none of which is in this run")
+        if len(takers) > 1:
+            raise UserError(f"--checkpoint {checkpoint}: {', '.join(takers)} all take a checkpoint; give each "
+                            "its own with --option NAME.checkpoint=PATH")
+        if "checkpoint" in options.get(takers[0], {}):
+            raise UserError(f"--option {takers[0]}.checkpoint: give the checkpoint once, with --checkpoint")
+        options.setdefault(takers[0], {})["checkpoint"] = checkpoint
+    out_dir = Path(out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
+    sequences = resolve_data(data, split)
+    files = list(sequences.values())
+    from benchmarks.evaluation.protocol import nothing_to_score
+
+    for f in files:  # else its row would be empty, at exit 0
+        problem = nothing_to_score(f, max_segments, reinitialise=protocol == "ar")
+        if problem:
+            raise UserError(problem)
+    named: dict[str, str] = {}
+    for seq in videos:
+        from benchmarks.analysis.report import video_name
+
+        if named.get(video_name(seq), seq) != seq:
+            raise UserError(f"--video {seq}: its file name {video_name(seq)} is also --video {named[video_name(seq)]}'s")
+        named[video_name(seq)] = seq
+        if seq not in sequences:
+            raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
+        check_video(seq, sequences[seq])
+    check_outputs(out_dir, _output_names(protocol, plots, videos, energy), files)
+    for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
+        output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
+    # every path under --out, checked now; --out holds this run's files only (benchmarks.analysis.report)
+    run_dir(out_dir, "--out", [*_output_names(protocol, plots, videos, energy), *per_sequence_files(trackers, sequences, protocol)])
+    model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
+    check_trackers(trackers, options, option_specs)
+    if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
+        model = load_sctn_checkpoint(None)
+    ann_models, notes = energy_ann_models(trackers, options) if energy else ({}, ())
+    tasks = [(t, str(f)) for t in trackers for f in files]
+    jobs = jobs or min(2, os.cpu_count() or 1, len(tasks))
+    return Plan(trackers, files, sequences, options, out_dir, jobs, model, ann_models, notes, tasks, max_segments,
+                protocol, list(tracker_modules), scheduler, list(videos))
+
+
+def track(p: Plan, progress: bool = True) -> list:
+    """Run every task of the plan (in parallel processes when jobs > 1); results in task order."""
+    from benchmarks.evaluation.runner import benchmark
+
+    return benchmark(p.trackers, p.files, p.options, p.jobs, p.max_segments, p.protocol, p.tracker_modules,
+                     progress=progress, scheduler=p.scheduler)
+
+
+@dataclass
+class BenchmarkRun:
+    """A finished run: its plan, results in task order, tables, energy table (or None) and written files."""
+
+    plan: Plan
+    results: list
+    summary: object
+    energy: object | None = None
+    paths: dict = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list:
+        """The results of runs that raised (a runtime failure), in task order."""
+        return [r for r in self.results if r.error]
+
+
+def tables_text(run: BenchmarkRun) -> str:
+    """The run's tables as printed on a terminal: the protocol's table, per attribute, the energy table."""
+    from benchmarks.analysis.tables import terminal
+    from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, format_attributes
+
+    protocol = run.plan.protocol
+    if protocol == "ope":
+        from benchmarks.evaluation.ope import format_ope
+
+        parts = [format_ope(run.summary)]
+    else:
+        parts = [terminal(run.summary)]
+    parts.append("\nper attribute:\n" + format_attributes(
+        attribute_ope(run.results) if protocol == "ope" else attribute_scores(run.results), protocol))
+    if run.energy is not None:
+        from benchmarks.analysis.energy_table import format_energy_table
+
+        parts.append(format_energy_table(run.energy))
+    return "\n".join(parts)
+
+
+def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, split: str = "test",
+                  out: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
+                  tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
+                  videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
+                  options: Sequence[str] = (), protocol: str = "ar", progress: bool = True,
+                  show: Callable[[BenchmarkRun], None] | None = None) -> BenchmarkRun:
+    """Check everything (plan_benchmark), run every tracker on every sequence, make and write the tables.
+
+    `show` gets the finished run before any file is written (its `paths` still empty); a tracker that
+    raises on a sequence is a result with `error` set (`BenchmarkRun.failed`), the tables still written.
+    """
+    from benchmarks.analysis.report import write_report
+    from benchmarks.analysis.tables import summarise
+
+    p = plan_benchmark(trackers, data, split, out, jobs, scheduler, tracker_modules, max_segments, plots, videos,
+                       checkpoint, energy, options, protocol)
+    results = track(p, progress)
+    if protocol == "ope":
+        from benchmarks.evaluation.ope import summarise_ope
+
+        summary = summarise_ope(results)
+    else:
+        summary = summarise(results)
+    table = None
+    if p.model is not None and energy:
+        from benchmarks.analysis.energy_table import energy_table
+
+        # computed before writing: a crash here leaves out as it was
+        table = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
+    run = BenchmarkRun(p, results, summary, table)
+    if show is not None:
+        show(run)
+    run.paths = write_report(p.out_dir, summary, results, protocol=protocol, plots=plots,
+                             videos={seq: p.sequences[seq] for seq in videos}, energy=table)
+    return run
