@@ -14,11 +14,8 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from processes import dvsot  # noqa: E402
 from synthetic import moving_square_file  # noqa: E402
-
-
-def dvsot(*args) -> list[str]:
-    return [sys.executable, "-m", "dvsot.cli", *map(str, args)]
 
 
 def run(*args, timeout: float = 300) -> subprocess.CompletedProcess:

@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 QUICKSTART = ROOT / "blender_scenes" / "quickstart.yaml"
 TINY_RENDER = ["--resolution", "160x120", "--duration", "0.2", "--quiet"]
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from processes import alive, children, dvsot, names, wait_for  # noqa: E402
 from synthetic import moving_square_file  # noqa: E402
 
 
@@ -43,16 +44,8 @@ def _no_leftover_processes(monkeypatch):
             p.wait()
 
 
-def dvsot(*args: str) -> list[str]:
-    return [sys.executable, "-m", "dvsot.cli", *map(str, args)]
-
-
 def run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run(dvsot(*args), capture_output=True, text=True, timeout=timeout)
-
-
-def names(d: Path) -> list[str]:
-    return sorted(p.name for p in d.iterdir())
 
 
 def temps(d: Path) -> list[str]:
@@ -62,30 +55,6 @@ def temps(d: Path) -> list[str]:
 def writer_temp(d: Path, name: str = "x.h5") -> bool:
     """Whether the staged file of `name` exists (not just the writability probe, which comes and goes first)."""
     return any(n.startswith(f".{name}.tmp") for n in names(d))
-
-
-def wait_for(cond, timeout: float = 300.0, step: float = 0.005) -> None:
-    """Poll cond until it holds (generous: a loaded machine builds Blender scenes slowly)."""
-    end = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("timed out waiting")
-        time.sleep(step)
-
-
-def alive(pid: int) -> bool:
-    """A process that exists and is not a zombie."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except (OSError, IndexError):
-        return False
-
-
-def children(pid: int) -> list[int]:
-    try:
-        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
-    except OSError:
-        return []
 
 
 def frames_stack(path: Path, n: int = 120, w: int = 160, h: int = 120) -> Path:
@@ -163,7 +132,8 @@ def test_workers_die_with_their_parent(tmp_path):
     p = subprocess.Popen(dvsot("generate", *scenes, "--out-dir", d, "--jobs", "2", *TINY_RENDER),
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     assert "name: fa" in scenes[0].read_text()
-    wait_for(lambda: temps(d) or p.poll() is not None)  # a worker is writing
+    staged = lambda: any(writer_temp(d, f"{n}.h5") for n in ("fa", "fb", "fc"))  # noqa: E731
+    wait_for(lambda: (staged() and len(children(p.pid)) >= 2) or p.poll() is not None)  # a worker is writing
     kids = children(p.pid)
     p.kill()
     p.wait()

@@ -10,25 +10,12 @@ from pathlib import Path
 
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from processes import children, dvsot, group_alive, names, wait_for  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[2]
 QUICKSTART = ROOT / "blender_scenes" / "quickstart.yaml"
 TINY_RENDER = ["--resolution", "160x120", "--duration", "0.2", "--quiet"]
-
-
-def dvsot(*args) -> list[str]:
-    return [sys.executable, "-m", "dvsot.cli", *map(str, args)]
-
-
-def names(d: Path) -> list[str]:
-    return sorted(p.name for p in d.iterdir())
-
-
-def wait_for(cond, timeout: float = 300.0, step: float = 0.005) -> None:
-    end = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("timed out waiting")
-        time.sleep(step)
 
 
 def scenes(tmp_path: Path, *names_: str) -> list[Path]:
@@ -39,14 +26,6 @@ def scenes(tmp_path: Path, *names_: str) -> list[Path]:
         s.write_text(text.replace("name: quickstart", f"name: {name}"))
         out.append(s)
     return out
-
-
-def group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    return True
 
 
 @pytest.mark.blender
@@ -100,17 +79,6 @@ def test_a_revoked_lease_stops_a_task_and_its_commit(tmp_path):
     assert out.read_text() == "old" and names(tmp_path) == ["x.txt"]
 
 
-def all_children(pid: int) -> list[int]:
-    """Children of every thread of pid (a Dask scheduler's loop thread starts processes too)."""
-    kids = []
-    for f in Path(f"/proc/{pid}/task").glob("*/children"):
-        try:
-            kids += [int(c) for c in f.read_text().split()]
-        except OSError:
-            pass
-    return kids
-
-
 @pytest.mark.parametrize("delay", [0.2, 1.0])
 def test_ctrl_c_on_bench_with_a_scheduler_is_one_line(tmp_path, delay):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -125,7 +93,7 @@ def test_ctrl_c_on_bench_with_a_scheduler_is_one_line(tmp_path, delay):
                                "--scheduler", "local:2", "--quiet"),
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        wait_for(lambda: len(all_children(p.pid)) >= 2 or p.poll() is not None, timeout=120)
+        wait_for(lambda: len(children(p.pid)) >= 2 or p.poll() is not None, timeout=120)
         time.sleep(delay)  # the workers start up, or run their first tasks
         os.killpg(p.pid, signal.SIGINT)
         _, err = p.communicate(timeout=120)
