@@ -1,5 +1,6 @@
 """The dataset file's streaming writer: events appended in chunks (ms_to_idx computed as they come), boxes,
-then per-segment ground truth and attributes at close; staged under a temporary name and renamed on success."""
+then at close the per-segment ground truth (dvsot.dataset.segment_truth) and attributes; staged under a temporary
+name and renamed on success."""
 
 from __future__ import annotations
 
@@ -12,10 +13,10 @@ import numpy as np
 
 from dvsot import limits as validate
 from dvsot.runtime.threads import OrderedWorker
-from dvsot.dataset.boxes import interpolate_boxes, match_annotations
-from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, attrs_problem, read_attrs, write_attr,
-                                  write_attrs)
+from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, BoxTrack, attrs_problem, read_attrs,
+                                  write_attr, write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
+from dvsot.dataset.segment_truth import SegmentTruth, segment_truth
 from dvsot.defaults import SEGMENT_US
 from dvsot.errors import RunError, UserError
 from dvsot.events.batch import NOISE_KINDS
@@ -289,99 +290,114 @@ class DatasetWriter:
         if self._closed:
             return self.path
         try:
-            self._flush(final=True)
-            if self._io is not None:
-                self._io.wait()  # every event chunk is written (or its error raised here)
-                self._io.stop()
-            box_t = np.concatenate(self._box_t) if self._box_t else np.empty(0, np.int64)
-            box_xywh = np.concatenate(self._box_xywh) if self._box_xywh else np.empty((0, 4), np.float32)
-            box_vis = np.concatenate(self._box_vis) if self._box_vis else np.empty((0, 4), np.float32)
-            if len(box_t) > 1 and np.any(np.diff(box_t) <= 0):
-                raise ValueError("box sample times must be strictly increasing")
-            for what, rows in (("xywh", box_xywh), ("xywh_visible", box_vis)):
-                problem = validate.box_problem(rows, self.width, self.height)
-                if problem:
-                    raise ValueError(f"boxes {what}: {problem}")
-            if duration_us is None:
-                candidates = [self._last_t + 1 if self._count else 0, int(box_t[-1]) if len(box_t) else 0]
-                duration_us = max(candidates)
-            duration_us = int(duration_us)
-            if duration_us > validate.MAX_DURATION_US:
-                raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
-            if self._count and self._last_t >= duration_us:
-                raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
-            if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
-                raise ValueError(f"box times run from {int(box_t[0])} us to {int(box_t[-1])} us, outside the file's "
-                                 f"0..{duration_us} us")
-            if duration_us < self.segment_us:
-                raise ValueError(f"a duration of {duration_us} us holds no segment of {self.segment_us} us")
-            duration_ms = -(-duration_us // 1000)
-            tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
-            ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
-            f = self._file
-            ck = {"fletcher32": self._checksum}
-            f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
-            f["ms_to_idx"] = f["events/ms_to_idx"]  # a hard link: one table, two names
-            f.create_dataset("t_offset", data=np.int64(self.t_offset_us))
-            g = f.create_group("boxes")
-            g.create_dataset("t", data=box_t, maxshape=(None,), **ck)
-            g.create_dataset("xywh", data=box_xywh, maxshape=(None, 4), **ck)
-            g.create_dataset("xywh_visible", data=box_vis, maxshape=(None, 4), **ck)
-            n_seg = duration_us // self.segment_us
-            seg_t = (np.arange(n_seg, dtype=np.int64) + 1) * self.segment_us
-            if self.annotated:
-                match = match_annotations(box_t, self.segment_us, n_seg)
-                nan = np.full((1, 4), np.nan, np.float32)
-                seg_box = np.where((match >= 0)[:, None], np.concatenate([box_xywh, nan])[match], nan)
-                seg_vis = np.where((match >= 0)[:, None], np.concatenate([box_vis, nan])[match], nan)
-            elif len(box_t):
-                seg_box = interpolate_boxes(box_t, box_xywh, seg_t).astype(np.float32)
-                seg_vis = interpolate_boxes(box_t, box_vis, seg_t).astype(np.float32)
-            else:
-                seg_box = np.full((n_seg, 4), np.nan, np.float32)
-                seg_vis = seg_box.copy()
-            s = f.create_group("segments")
-            s.create_dataset("t", data=seg_t, **ck)
-            s.create_dataset("xywh", data=seg_box.reshape(-1, 4), **ck)
-            s.create_dataset("xywh_visible", data=seg_vis.reshape(-1, 4), **ck)
-            if self.annotated:
-                s.create_dataset("annotation", data=match, **ck)
-            if self._visibility and self._visibility[0] is not None:
-                vis = np.concatenate(self._visibility)
-                g.create_dataset("visibility", data=vis, maxshape=(None,), **ck)
-                seg_visibility = interpolate_boxes(box_t, np.repeat(vis[:, None], 4, 1), seg_t)[:, 0]
-                s.create_dataset("visibility", data=seg_visibility.astype(np.float32), **ck)
-                absent = np.isnan(seg_vis).any(axis=1) | np.isnan(seg_box).any(axis=1)
-                s.create_dataset("absent", data=absent.astype(np.uint8), **ck)
-            if self._objects is not None:
-                o = f.create_group("objects")
-                o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
-                for key in ("name", "role"):  # fixed-length UTF-8: no heap a damaged file could point into
-                    text = [str(r[key]).encode("utf-8") for r in self._objects]
-                    o.create_dataset(key, data=np.array(text, dtype=f"S{max([1, *map(len, text)])}"), **ck)
-            attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
-            attrs.update(self._attrs)
-            attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
-                         segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
-                         t_offset_us=self.t_offset_us,
-                         ground_truth="annotations" if self.annotated else "rendered")
-            write_attrs(f, attrs)
-            # over the values as a reader decodes them, so both sides hash the same thing
-            write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
-            f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
-            f.close()
-            _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)
-            self._run.done(self.path)
-            if self._own_run is not None:
-                from dvsot.runtime.outputs import writing
-
-                with writing(self.path):
-                    self._own_run.commit()
+            self._finish_events()
+            track = self._box_track()
+            duration_us = self._duration(duration_us, track.t)
+            truth = segment_truth(track, duration_us, self.segment_us, self.annotated)
+            self._write_tables(duration_us, track, truth)
+            self._write_attributes(duration_us)
+            self._commit()
         except BaseException:
             self.abort()
             raise
         self._closed = True
         return self.path
+
+    def _finish_events(self) -> None:
+        """Write the buffered events and wait for the writer thread (its error, a full disk, raises here)."""
+        self._flush(final=True)
+        if self._io is not None:
+            self._io.wait()
+            self._io.stop()
+
+    def _box_track(self) -> BoxTrack:
+        """Every box appended, joined and checked: times strictly increasing, rows within the sensor."""
+        t = np.concatenate(self._box_t) if self._box_t else np.empty(0, np.int64)
+        xywh = np.concatenate(self._box_xywh) if self._box_xywh else np.empty((0, 4), np.float32)
+        visible = np.concatenate(self._box_vis) if self._box_vis else np.empty((0, 4), np.float32)
+        if len(t) > 1 and np.any(np.diff(t) <= 0):
+            raise ValueError("box sample times must be strictly increasing")
+        for what, rows in (("xywh", xywh), ("xywh_visible", visible)):
+            problem = validate.box_problem(rows, self.width, self.height)
+            if problem:
+                raise ValueError(f"boxes {what}: {problem}")
+        visibility = np.concatenate(self._visibility) if self._visibility and self._visibility[0] is not None else None
+        return BoxTrack(t, xywh, visible, visibility)
+
+    def _duration(self, duration_us: int | None, box_t: np.ndarray) -> int:
+        """The file's duration in microseconds: the one given, checked against the events and boxes, or else the
+        later of the last event's time + 1 and the last box's time."""
+        if duration_us is None:
+            candidates = [self._last_t + 1 if self._count else 0, int(box_t[-1]) if len(box_t) else 0]
+            duration_us = max(candidates)
+        duration_us = int(duration_us)
+        if duration_us > validate.MAX_DURATION_US:
+            raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
+        if self._count and self._last_t >= duration_us:
+            raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
+        if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
+            raise ValueError(f"box times run from {int(box_t[0])} us to {int(box_t[-1])} us, outside the file's "
+                             f"0..{duration_us} us")
+        if duration_us < self.segment_us:
+            raise ValueError(f"a duration of {duration_us} us holds no segment of {self.segment_us} us")
+        return duration_us
+
+    def _write_tables(self, duration_us: int, track: BoxTrack, truth: SegmentTruth) -> None:
+        """Write ms_to_idx, t_offset, the box track, the per-segment ground truth and the object table."""
+        duration_ms = -(-duration_us // 1000)
+        tail = np.full(max(0, duration_ms + 1 - self._next_ms), self._count, dtype=np.uint64)
+        ms_to_idx = np.concatenate(self._ms_to_idx + [tail])[: duration_ms + 1]
+        f = self._file
+        ck = {"fletcher32": self._checksum}
+        f["events"].create_dataset("ms_to_idx", data=ms_to_idx.astype(np.uint64), **ck)
+        f["ms_to_idx"] = f["events/ms_to_idx"]  # a hard link: one table, two names
+        f.create_dataset("t_offset", data=np.int64(self.t_offset_us))
+        g = f.create_group("boxes")
+        g.create_dataset("t", data=track.t, maxshape=(None,), **ck)
+        g.create_dataset("xywh", data=track.xywh, maxshape=(None, 4), **ck)
+        g.create_dataset("xywh_visible", data=track.xywh_visible, maxshape=(None, 4), **ck)
+        s = f.create_group("segments")
+        s.create_dataset("t", data=truth.t, **ck)
+        s.create_dataset("xywh", data=truth.xywh, **ck)
+        s.create_dataset("xywh_visible", data=truth.xywh_visible, **ck)
+        if truth.annotation is not None:
+            s.create_dataset("annotation", data=truth.annotation, **ck)
+        if track.visibility is not None:
+            g.create_dataset("visibility", data=track.visibility, maxshape=(None,), **ck)
+            s.create_dataset("visibility", data=truth.visibility, **ck)
+            s.create_dataset("absent", data=truth.absent.astype(np.uint8), **ck)
+        if self._objects is not None:
+            o = f.create_group("objects")
+            o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
+            for key in ("name", "role"):  # fixed-length UTF-8: no heap a damaged file could point into
+                text = [str(r[key]).encode("utf-8") for r in self._objects]
+                o.create_dataset(key, data=np.array(text, dtype=f"S{max([1, *map(len, text)])}"), **ck)
+
+    def _write_attributes(self, duration_us: int) -> None:
+        """Write the root attributes and their digest."""
+        f = self._file
+        attrs = {"name": self.path.name.removesuffix(".h5"), "split": ""}
+        attrs.update(self._attrs)
+        attrs.update(format=FORMAT, format_version=FORMAT_VERSION, width=self.width, height=self.height,
+                     segment_us=self.segment_us, duration_us=duration_us, num_events=self._count,
+                     t_offset_us=self.t_offset_us, ground_truth="annotations" if self.annotated else "rendered")
+        write_attrs(f, attrs)
+        # over the values as a reader decodes them, so both sides hash the same thing
+        write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
+
+    def _commit(self) -> None:
+        """Close the temp file, check it read back as written, and rename it into place (or leave that to the
+        enclosing run_outputs() block)."""
+        f = self._file
+        f.flush()  # a full disk fails here, with the file still open (HDF5 crashes on a failed close)
+        f.close()
+        _read_back(self.tmp_path, self.path, self._digests if self._compression == "gzip" else None)
+        self._run.done(self.path)
+        if self._own_run is not None:
+            from dvsot.runtime.outputs import writing
+
+            with writing(self.path):
+                self._own_run.commit()
 
     def abort(self) -> None:
         """Discard the temporary file; nothing at the target path is touched."""
