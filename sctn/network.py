@@ -18,6 +18,7 @@ Default widths (chosen for speed on a CPU): conv 2->8 (4x4, stride 4) -> 16 (3x3
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -189,112 +190,116 @@ class SCTN(nn.Module):
         "fc1", "fc2" spikes (T, N or U, width) and "mix_macs", the multiply-adds of the bilinear mix.
         """
         check_crop(crop)
+        feat, rec = self._conv_region(region)
+        in_x, in_y = self._kept_cells(origins, boxes)
+        stride, _ = self.receptive_field()
+        corners, weights = _crop_corners(origins / stride, crop)  # the canvases' first cells, in map coordinates
+        crops = _distinct_crops(corners, weights, in_x, in_y)
+        # steps in which conv3 is silent give fc1 its bias alone
+        active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
+        if not (record or torch.is_grad_enabled()):  # inference: event-driven sums, no dense crops
+            products = self._event_driven_sums(feat, crops)
+        else:
+            products, rec["crops"] = self._dense_sums(feat, crops, in_x, in_y, active, record)
+        current, expand, rec["mix_macs"] = self._fc1_current(products, crop, crops, weights, len(active))
+        return self._fc_layers(current, expand, rec, record)
+
+    def _conv_region(self, region: torch.Tensor) -> tuple[torch.Tensor, dict]:
+        """forward_search's first step: the convolutions and their neurons once over the whole region (1, T, 2, Hs,
+        Ws), its empty tail added if missing. Returns conv3's spikes (T, C, fh, fw) and the record of every
+        layer's spikes so far ("input", "conv1".."conv3", each (T, 1, C, H, W))."""
         cfg = self.cfg
         x = region
         if x.shape[1] == cfg.steps and cfg.tail_steps:
             x = torch.cat([x, x.new_zeros((1, cfg.tail_steps) + x.shape[2:])], dim=1)
-        t = x.shape[1]
         h = x[0]
         rec: dict = {"input": h[:, None]}
         for name, conv, neuron in zip(("conv1", "conv2", "conv3"), self.convs, self.neurons[:3]):
             h, _ = neuron(conv(h)[:, None])
             h = h[:, 0]
             rec[name] = h[:, None]
-        feat = h  # (T, C, fh, fw)
-        c, fh, fw = feat.shape[1:]
-        n_cells = cfg.conv_sizes()[-1]
+        return h, rec
+
+    def _kept_cells(self, origins: torch.Tensor, boxes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per candidate, the columns and the rows (each (N, cells) bool) of its canvas's conv3 cells whose
+        receptive-field centre lies inside its box (region pixels); the others are masked."""
+        n_cells = self.cfg.conv_sizes()[-1]
         stride, rf = self.receptive_field()
-        n = origins.shape[0]
         cell = torch.arange(n_cells, dtype=torch.float32)
         centre_x = origins[:, 0:1] + stride * cell + rf / 2  # region px of each cell's receptive-field centre
         centre_y = origins[:, 1:2] + stride * cell + rf / 2
         in_x = (centre_x >= boxes[:, 0:1]) & (centre_x < boxes[:, 0:1] + boxes[:, 2:3])  # (N, cells)
         in_y = (centre_y >= boxes[:, 1:2]) & (centre_y < boxes[:, 1:2] + boxes[:, 3:4])
-        first = origins / stride  # feature-map coordinates of each candidate's first cell
-        if crop == "nearest":
-            corners = torch.round(first)[:, None]  # (N, 1, 2)
-            weights = torch.ones(n, 1)
-        else:
-            base = torch.floor(first)
-            fx, fy = (first - base).unbind(1)
-            corners = base[:, None] + torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
-            weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], dim=1)
-        k = corners.shape[1]
-        # one integer crop per (candidate, corner) of nonzero weight; equal position and mask = equal crop.
-        # A mask is an interval of cells per axis, so (position, first kept cell, kept count) per axis
-        # identifies a crop: packed into one int64 (13 + 13 + 4 x 7 bits), unique is a 1-D sort.
-        if n_cells >= 128:
-            raise ValueError(f"fast search packs cell indices in 7 bits; conv3 has {n_cells} cells a side")
-        pos = corners.reshape(n * k, 2).long()
-        (sx, nx), (sy, ny) = (_interval(m) for m in (in_x, in_y))
-        masks = ((sx * 128 + nx) * 128 + sy) * 128 + ny  # 28 bits
-        keys = ((pos[:, 0] + 4096) * 8192 + pos[:, 1] + 4096) * (1 << 28) + masks.repeat_interleave(k)
-        used = torch.nonzero(weights.reshape(-1) > 0)[:, 0]
-        _, inverse = torch.unique(keys[used], return_inverse=True)
-        u = int(inverse.max()) + 1
-        rep = used[torch.empty(u, dtype=torch.long).scatter_(0, inverse, torch.arange(len(used)))]
-        pos = pos[rep]
-        # steps in which conv3 is silent give fc1 its bias alone
-        active = torch.nonzero(feat.flatten(1).amax(dim=1) > 0)[:, 0]
-        ta = len(active)
-        if not (record or torch.is_grad_enabled()):  # inference: event-driven sums, no dense crops
-            owner = rep // k
-            windows = torch.stack([pos[:, 0], pos[:, 1], sx[owner], nx[owner], sy[owner], ny[owner]], dim=1)
-            products = torch.from_numpy(window_sums(feat.permute(0, 2, 3, 1).numpy(), self._fc1_cell_weights(),
-                                                    windows.numpy()))
-            return self._search_tail(products, crop, inverse, used, weights, ta, rec, record)
-        ux, uy = in_x[rep // k], in_y[rep // k]
+        return in_x, in_y
+
+    def _event_driven_sums(self, feat: torch.Tensor, crops: _Crops) -> torch.Tensor:
+        """fc1's weighted sums (T, U, width), no bias, of the distinct crops of conv3's spikes feat (T, C, fh, fw),
+        added up from the spikes inside each crop's kept window (inference: no gradient, nothing recorded)."""
+        windows = torch.cat([crops.pos, crops.intervals[crops.owner]], dim=1)
+        return torch.from_numpy(window_sums(feat.permute(0, 2, 3, 1).numpy(), self._fc1_cell_weights(),
+                                            windows.numpy()))
+
+    def _dense_sums(self, feat: torch.Tensor, crops: _Crops, in_x: torch.Tensor, in_y: torch.Tensor,
+                    active: torch.Tensor, record: bool) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """fc1's weighted sums (T, U, width), no bias, of the distinct crops of conv3's spikes feat (T, C, fh, fw),
+        as the gathered crops times fc1's weights (differentiable); active: the steps in which conv3 spiked.
+        Returns the sums and, if record, the crops fed to fc1 (T, U, inputs), else None."""
+        t, c = feat.shape[:2]
+        u, ta = len(crops.pos), len(active)
         # cells masked for every candidate are zero in every crop: leave them, and their fc1 weights,
         # out (a box half the canvas wide keeps ~1/4 of the cells)
         cols = torch.nonzero(in_x.any(dim=0))[:, 0]
         rows = torch.nonzero(in_y.any(dim=0))[:, 0]
         nr, nc = len(rows), len(cols)
-        fc1 = self.fcs[0]
-        w1 = fc1.weight.view(-1, c, n_cells, n_cells)[:, :, rows][:, :, :, cols]
-        w1 = w1.permute(0, 2, 3, 1).reshape(fc1.out_features, -1)  # the crops' (row, col, channel) order
-        crops = torch.zeros(t, u, nr * nc * c) if record else None
+        w1 = self._fc1_weights_at(rows, cols)
+        recorded = torch.zeros(t, u, nr * nc * c) if record else None
         if not (ta == t and nr and nc):
-            products = torch.zeros(t, u, fc1.out_features)  # fc1's weighted sums, no bias yet
+            products = torch.zeros(t, u, w1.shape[0])  # fc1's weighted sums, no bias yet
         if ta and nr and nc:
-            ys = pos[:, 1:2] + rows  # (U, rows) feature-map row of each kept cell
-            xs = pos[:, 0:1] + cols
-            ok = (uy[:, rows] & (ys >= 0) & (ys < fh))[:, :, None] & (ux[:, cols] & (xs >= 0) & (xs < fw))[:, None]
-            index = torch.where(ok, ys[:, :, None] * fw + xs[:, None, :], fh * fw)  # fh * fw: a zero cell
-            cells = feat[active].permute(0, 2, 3, 1).reshape(ta, fh * fw, c)
-            cells = torch.cat([cells, cells.new_zeros(ta, 1, c)], dim=1)
-            # index_select, not cells[:, index]: the advanced-indexing kernel is much slower here
-            selected = torch.index_select(cells, 1, index.view(-1)).view(ta, u, -1)
+            selected = _gather_crops(feat[active], crops.pos, in_y[crops.owner][:, rows], in_x[crops.owner][:, cols],
+                                     rows, cols)
             if ta == t:
                 products = nn.functional.linear(selected, w1)
             else:
                 products[active] = nn.functional.linear(selected, w1)
             if record:
-                crops[active] = selected
-        rec["crops"] = crops
-        return self._search_tail(products, crop, inverse, used, weights, ta, rec, record)
+                recorded[active] = selected
+        return products, recorded
 
-    def _search_tail(self, products: torch.Tensor, crop: str, inverse: torch.Tensor, used: torch.Tensor,
-                     weights: torch.Tensor, ta: int, rec: dict, record: bool):
-        """forward_search after fc1's weighted sums (T, U, width) of the distinct crops (`inverse` maps the
-        used (candidate, corner) pairs to them): bilinear mix, bias, the FC neurons; ta = steps conv3 spiked."""
+    def _fc1_weights_at(self, rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
+        """fc1's weights (width, inputs) on the conv3 cells of the given rows and columns, in a gathered crop's
+        (row, col, channel) order."""
+        n_cells = self.cfg.conv_sizes()[-1]
         fc1 = self.fcs[0]
-        t = products.shape[0]
-        n, k = weights.shape
+        w1 = fc1.weight.view(-1, self.cfg.channels[-1], n_cells, n_cells)[:, :, rows][:, :, :, cols]
+        return w1.permute(0, 2, 3, 1).reshape(fc1.out_features, -1)
+
+    def _fc1_current(self, products: torch.Tensor, crop: str, crops: _Crops, weights: torch.Tensor,
+                     ta: int) -> tuple[torch.Tensor, torch.Tensor | None, float]:
+        """fc1's input current from the distinct crops' weighted sums products (T, U, width): with crop="nearest"
+        per distinct crop (U), with the crops' index per candidate to expand the output by at the end; bilinear,
+        per candidate (N), each the mix of its corners' sums. Also the mix's multiply-adds (ta: the steps in
+        which conv3 spiked)."""
+        fc1 = self.fcs[0]
         if crop == "nearest":
             # the fully connected layers see U distinct inputs: run them on those, expand at the end
-            current, expand = _plus_bias(products, fc1), inverse
-            rec["mix_macs"] = 0.0
-        else:
-            slot = torch.zeros(n * k, dtype=torch.long)
-            slot[used] = inverse
-            if products.requires_grad:
-                corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
-                mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
-            else:  # fused: no (T, N, corners, width) intermediate
-                mixed = torch.from_numpy(mix_corners(products.numpy(), slot.view(n, k).numpy(), weights.numpy()))
-            current, expand = _plus_bias(mixed, fc1), None
-            mixing = (weights > 0).sum(dim=1)  # a candidate on a cell (one corner) needs no mixing
-            rec["mix_macs"] = float(mixing[mixing > 1].sum()) * fc1.out_features * ta
+            return _plus_bias(products, fc1), crops.inverse, 0.0
+        t = products.shape[0]
+        n, k = weights.shape
+        slot = torch.zeros(n * k, dtype=torch.long)
+        slot[crops.used] = crops.inverse
+        if products.requires_grad:
+            corner_sums = torch.index_select(products, 1, slot).view(t, n, k, -1)  # (T, N, corners, width)
+            mixed = (corner_sums * weights[None, :, :, None]).sum(dim=2)
+        else:  # fused: no (T, N, corners, width) intermediate
+            mixed = torch.from_numpy(mix_corners(products.numpy(), slot.view(n, k).numpy(), weights.numpy()))
+        mixing = (weights > 0).sum(dim=1)  # a candidate on a cell (one corner) needs no mixing
+        return _plus_bias(mixed, fc1), None, float(mixing[mixing > 1].sum()) * fc1.out_features * ta
+
+    def _fc_layers(self, current: torch.Tensor, expand: torch.Tensor | None, rec: dict, record: bool
+                   ) -> torch.Tensor | tuple[torch.Tensor, dict]:
+        """forward_search's last step: the fully connected neurons on fc1's current (T, N or U, width), the output
+        voltages expanded from distinct crops to candidates if expand is given; (N, T, 2), with rec if record."""
         h, v = self.neurons[3](current)
         rec["fc1"] = h
         h, v = self.neurons[4](self.fcs[1](h))
@@ -350,6 +355,65 @@ def check_crop(crop: str) -> None:
 def _plus_bias(sums: torch.Tensor, layer: nn.Linear) -> torch.Tensor:
     """A linear layer's weighted sums plus its bias, if it has one (the paper preset has none)."""
     return sums if layer.bias is None else sums + layer.bias
+
+
+class _Crops(NamedTuple):
+    """The distinct integer crops of conv3's map a search evaluates (U of them), and how candidates use them."""
+
+    pos: torch.Tensor  # (U, 2) int64 feature-map (x, y) of each crop's first cell
+    owner: torch.Tensor  # (U,) int64 a candidate whose mask the crop has
+    intervals: torch.Tensor  # (N, 4) int64 per candidate: first kept column, kept columns, first kept row, kept rows
+    used: torch.Tensor  # (P,) int64 the (candidate * corners + corner) pairs of nonzero weight
+    inverse: torch.Tensor  # (P,) int64 the crop each used pair reads
+
+
+def _crop_corners(first: torch.Tensor, crop: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """The integer cells (N, K, 2) a crop reads per candidate and their weights (N, K), from each canvas's first cell
+    in feature-map coordinates first (N, 2): the nearest cell (K = 1), or the four around it, weighted bilinearly."""
+    n = first.shape[0]
+    if crop == "nearest":
+        return torch.round(first)[:, None], torch.ones(n, 1)
+    base = torch.floor(first)
+    fx, fy = (first - base).unbind(1)
+    corners = base[:, None] + torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    weights = torch.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], dim=1)
+    return corners, weights
+
+
+def _distinct_crops(corners: torch.Tensor, weights: torch.Tensor, in_x: torch.Tensor, in_y: torch.Tensor) -> _Crops:
+    """One integer crop per (candidate, corner) of nonzero weight, each distinct (position, mask) once: corners
+    (N, K, 2) cells, weights (N, K), in_x / in_y (N, cells) each candidate's kept columns / rows."""
+    n, k = weights.shape
+    n_cells = in_x.shape[1]
+    # a mask is an interval of cells per axis, so (position, first kept cell, kept count) per axis
+    # identifies a crop: packed into one int64 (13 + 13 + 4 x 7 bits), unique is a 1-D sort.
+    if n_cells >= 128:
+        raise ValueError(f"fast search packs cell indices in 7 bits; conv3 has {n_cells} cells a side")
+    pos = corners.reshape(n * k, 2).long()
+    (sx, nx), (sy, ny) = (_interval(m) for m in (in_x, in_y))
+    masks = ((sx * 128 + nx) * 128 + sy) * 128 + ny  # 28 bits
+    keys = ((pos[:, 0] + 4096) * 8192 + pos[:, 1] + 4096) * (1 << 28) + masks.repeat_interleave(k)
+    used = torch.nonzero(weights.reshape(-1) > 0)[:, 0]
+    _, inverse = torch.unique(keys[used], return_inverse=True)
+    u = int(inverse.max()) + 1
+    rep = used[torch.empty(u, dtype=torch.long).scatter_(0, inverse, torch.arange(len(used)))]
+    return _Crops(pos[rep], rep // k, torch.stack([sx, nx, sy, ny], dim=1), used, inverse)
+
+
+def _gather_crops(feat: torch.Tensor, pos: torch.Tensor, keep_rows: torch.Tensor, keep_cols: torch.Tensor,
+                  rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
+    """The crops (T, U, rows * cols * C) of spike maps feat (T, C, fh, fw) at the cells (pos (U, 2) + (col, row))
+    of the given rows and columns, in (row, col, channel) order; a cell off the map or not kept (keep_rows (U, rows),
+    keep_cols (U, cols)) reads zero."""
+    ta, c, fh, fw = feat.shape
+    ys = pos[:, 1:2] + rows  # (U, rows) feature-map row of each kept cell
+    xs = pos[:, 0:1] + cols
+    ok = (keep_rows & (ys >= 0) & (ys < fh))[:, :, None] & (keep_cols & (xs >= 0) & (xs < fw))[:, None]
+    index = torch.where(ok, ys[:, :, None] * fw + xs[:, None, :], fh * fw)  # fh * fw: a zero cell
+    cells = feat.permute(0, 2, 3, 1).reshape(ta, fh * fw, c)
+    cells = torch.cat([cells, cells.new_zeros(ta, 1, c)], dim=1)
+    # index_select, not cells[:, index]: the advanced-indexing kernel is much slower here
+    return torch.index_select(cells, 1, index.view(-1)).view(ta, len(pos), -1)
 
 
 def _interval(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
