@@ -1,8 +1,11 @@
-"""Synthetic labelled sequences made in numpy (no Blender): a textured square moving over a textured wall."""
+"""Synthetic test inputs: scene files (the smallest valid one, a tiny one for real renders) and labelled sequences
+made in numpy (no Blender): a textured square moving over a textured wall."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,6 +22,38 @@ target:
   trajectory:
     keyframes: [{t: 0, location: [0, 0, 0]}]
 """
+
+
+TINY_DURATION_S = 0.2  # the tiny scene's length, seconds
+
+
+def linear_path(start: tuple[float, float, float], end: tuple[float, float, float]) -> dict[str, Any]:
+    """A scene file trajectory from start to end (metres, world x y z), linear over the tiny scene's duration."""
+    return {"interpolation": "linear",
+            "keyframes": [{"t": 0, "location": list(start)}, {"t": TINY_DURATION_S, "location": list(end)}]}
+
+
+def tiny_scene(name: str, target: dict[str, Any], objects: list[dict[str, Any]] | None = None, threads: int = 2,
+               sampling: dict[str, Any] | None = None) -> str:
+    """A tiny scene file for real renders: 160x120 px over TINY_DURATION_S, the camera 10 m in front of a dark
+    self-lit wall, no lights, a grey world, sampled at 50 Hz at least; target and each of objects are that object's
+    scene file fields and sampling further sampling fields, written as YAML flow mappings."""
+    sampling = {"min_rate_hz": 50, **(sampling or {})}
+    lines = [f"name: {name}",
+             f"duration_s: {TINY_DURATION_S}",
+             "sensor: {width: 160, height: 120, focal_mm: 35}",
+             "camera:",
+             "  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]",
+             f"target: {json.dumps(target)}"]
+    if objects:
+        lines.append(f"objects: {json.dumps(objects)}")
+    lines += ["background:",
+              "  material: {color: [0.1, 0.1, 0.1], emission: 0.3}",
+              "lights: []",
+              "world: {color: [0.5, 0.5, 0.5], strength: 1.0}",
+              f"render: {{threads: {threads}}}",
+              f"sampling: {json.dumps(sampling)}"]
+    return "\n".join(lines) + "\n"
 
 
 def moving_square_file(path: Path, width: int = 160, height: int = 120, size: int = 30, duration_ms: int = 200,

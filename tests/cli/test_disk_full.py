@@ -7,28 +7,12 @@ import subprocess
 import pytest
 
 from dvsot.cli import main
+from synthetic import linear_path, tiny_scene
 
 pytestmark = pytest.mark.blender
 
-SCENE = """name: tiny
-duration_s: 0.2
-sensor: {width: 160, height: 120, focal_mm: 35}
-camera:
-  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
-target:
-  shape: cube
-  size_m: 1.5
-  material: {color: [0.9, 0.9, 0.9]}
-  trajectory:
-    interpolation: linear
-    keyframes: [{t: 0, location: [-1, 0, 0]}, {t: 0.2, location: [1, 0, 0]}]
-background:
-  material: {color: [0.1, 0.1, 0.1], texture: null, emission: 0.3}
-lights: []
-world: {color: [0.5, 0.5, 0.5], strength: 1.0}
-render: {threads: 1}
-sampling: {min_rate_hz: 50}
-"""
+SCENE = tiny_scene("tiny", {"shape": "cube", "size_m": 1.5, "material": {"color": [0.9, 0.9, 0.9]},
+                            "trajectory": linear_path((-1, 0, 0), (1, 0, 0))}, threads=1)
 
 
 @pytest.fixture

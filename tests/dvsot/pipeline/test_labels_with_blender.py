@@ -6,37 +6,17 @@ import pytest
 from dvsot.cli import main
 from dvsot.dataset import Dataset
 from dvsot.events.labels import BACKGROUND_ID, NOISE_ID, TARGET_ID
+from synthetic import linear_path, tiny_scene
 
 pytestmark = pytest.mark.blender
 
-SCENE = """name: labels
-duration_s: 0.2
-sensor: {width: 160, height: 120, focal_mm: 35}
-camera:
-  keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]
-target:
-  shape: cube
-  size_m: 1.2
-  material: {color: [0.9, 0.9, 0.9]}
-  trajectory:
-    interpolation: linear
-    keyframes: [{t: 0, location: [-2.5, 0, 0.8]}, {t: 0.2, location: [-1.5, 0, 0.8]}]
-objects:
-  - name: ball
-    role: distractor
-    shape: sphere
-    size_m: 1.0
-    material: {color: [0.8, 0.2, 0.2]}
-    trajectory:
-      interpolation: linear
-      keyframes: [{t: 0, location: [2.0, 0, -0.8]}, {t: 0.2, location: [2.0, 0, 0.2]}]
-background:
-  material: {color: [0.1, 0.1, 0.1], emission: 0.3}
-lights: []
-world: {color: [0.5, 0.5, 0.5], strength: 1.0}
-render: {threads: 2}
-sampling: {max_displacement_px: 2.0, min_rate_hz: 50}
-"""
+SCENE = tiny_scene(
+    "labels",
+    {"shape": "cube", "size_m": 1.2, "material": {"color": [0.9, 0.9, 0.9]},
+     "trajectory": linear_path((-2.5, 0, 0.8), (-1.5, 0, 0.8))},
+    objects=[{"name": "ball", "role": "distractor", "shape": "sphere", "size_m": 1.0,
+              "material": {"color": [0.8, 0.2, 0.2]}, "trajectory": linear_path((2.0, 0, -0.8), (2.0, 0, 0.2))}],
+    sampling={"max_displacement_px": 2.0})
 
 
 def test_target_events_carry_the_target_id(tmp_path, capsys):
