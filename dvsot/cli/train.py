@@ -16,7 +16,7 @@ MODELS = ("sctn", "sctn_ann", "siamfc")
 SCTN_LIKE = ("sctn", "sctn_ann")
 # flags that only some models have: {flag dest: models}; a flag is given when its value is not None
 ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
-        "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
+        "background_term": SCTN_LIKE, "no_background_neuron": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
         "tail_steps": ("sctn",), "input": ("sctn_ann",), "error_time": SCTN_LIKE, "init": ("sctn",),
         "fluctuation_xi": ("sctn",)}
 
@@ -46,6 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="deviation from the paper: square each sample's eq.-5 error (an ablation row)")
     p.add_argument("--background-term", action="store_true", default=None,
                    help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
+    p.add_argument("--no-background-neuron", action="store_true", default=None,
+                   help="deviation from the paper: leave the background output neuron out of the network and its "
+                        "operation counts (an ablation row)")
     p.add_argument("--calibrate", action="store_true", default=None,
                    help="sctn: the same as --init calibrate")
     p.add_argument("--init", choices=["kaiming", "calibrate", "fluctuation"], default=None,
@@ -93,7 +96,7 @@ def _network_config(args: argparse.Namespace):
     problem = range_problem("--tail-steps", tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
     if problem:
         raise UserError(problem)
-    net = {"tail_steps": tail, "bias": bool(args.bias)}
+    net = {"tail_steps": tail, "bias": bool(args.bias), "background_neuron": not args.no_background_neuron}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
         if sizes is not None:

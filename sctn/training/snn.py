@@ -69,6 +69,11 @@ class TrainConfig(TrainBudget):
                 data["init"] = "calibrate"
         return data
 
+    def __init__(self, **data: Any) -> None:
+        super().__init__(**data)
+        if self.background_term and not self.network.background_neuron:  # the mirrored error would train nothing
+            raise TrainConfigError("background_term", "needs the background neuron (not with --no-background-neuron)")
+
     @property
     def calibrate(self) -> bool:
         """Whether the weights start from the data-driven calibration (init "calibrate")."""
