@@ -158,8 +158,9 @@ def format_plateaus(found: dict) -> str:
              "|---|---|---|---|---|---|"]
     for model, m in found["models"].items():
         note = "" if m["runs"] < 2 or m["common_steps"] else " (no step common to its runs)"
-        lines.append(f"| {model}: mean curve{note} | {m['runs']} | {cell(m['step'], 'd')} | {cell(m['arscore'], '.3f')} "
-                     f"| {', '.join(map(str, m['run_steps'])) or '-'} ({cell(m['mean_run_step'], '.0f')}) | |")
+        lines.append(f"| {model}: mean curve{note} | {m['runs']} | {cell(m['step'], 'd')} "
+                     f"| {cell(m['arscore'], '.3f')} | {', '.join(map(str, m['run_steps'])) or '-'} "
+                     f"({cell(m['mean_run_step'], '.0f')}) | |")
     for r in found["runs"]:
         best = "-" if r["best"] is None else f"{r['best']:.3f} ({r['best_step']})"
         lines.append(f"| {r['label']} | 1 | {cell(r['step'], 'd')} | {cell(r['arscore'], '.3f')} | | {best} |")

@@ -13,6 +13,9 @@ then the table prints mean and standard deviation over seeds.
     python -m benchmarks.experiments.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
     python -m benchmarks.experiments.ablation --train data/dvsot21 --val-data data/val --test data/val --test-split any \
         --rows paper error_time_max calibration init_fluctuation --seeds 5 --out runs/choices   # chosen on validation
+    python -m benchmarks.experiments.ablation --train data/dvsot21 --test data/dvsot21 \
+        --rows paper widths_x2 widths_x4 --seeds 3 --jobs 1 --out runs/widths   # + widths_mdnet: hours; speed: idle
+    python -m benchmarks.experiments.ablation ... --rows paper background_term no_background_neuron --seeds 5
 
 With --scheduler local:N | tcp://HOST:PORT each (row, seed) is one task on Dask (dvsot.runtime.dask_tasks.run_tasks, as
 `dvsot generate` and `dvsot bench` use it); the workers need the data files and --out at the same paths. A
@@ -161,7 +164,8 @@ def summarise(runs: list[dict]) -> dict:
 def format_table(summary: dict) -> str:
     """The ablation as a markdown table: mean +- std over seeds per row; tracking speed is segments per second of the
     tracker's update time (fine-tuning apart), one thread, as loaded as the machine was."""
-    lines = ["| row | A | R | ARscore | AC per evaluation | AC per segment | segments/s | seeds | silent | nearly silent |",
+    lines = ["| row | A | R | ARscore | AC per evaluation | AC per segment | segments/s | seeds | silent "
+             "| nearly silent |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for row, r in summary.items():
         cells = [f"{r['mean'][k]:.3f} ± {r['std'][k]:.3f}" for k in METRICS]

@@ -16,8 +16,9 @@ MODELS = ("sctn", "sctn_ann", "siamfc")
 SCTN_LIKE = ("sctn", "sctn_ann")
 # flags that only some models have: {flag dest: models}; a flag is given when its value is not None
 ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
-        "background_term": SCTN_LIKE, "no_background_neuron": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
-        "tail_steps": ("sctn",), "input": ("sctn_ann",), "error_time": SCTN_LIKE, "init": ("sctn",),
+        "background_term": SCTN_LIKE, "no_background_neuron": SCTN_LIKE, "bias": SCTN_LIKE,
+        "ops_penalty": ("sctn",), "calibrate": ("sctn",), "tail_steps": ("sctn",), "input": ("sctn_ann",),
+        "error_time": SCTN_LIKE, "init": ("sctn",),
         "fluctuation_xi": ("sctn",)}
 
 

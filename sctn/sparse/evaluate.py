@@ -22,7 +22,7 @@ reproducing a convolution of the dense path's shape), the neurons repeat
 sctn.neurons._clif_steps's arithmetic, and the fully connected layers are torch's (a row's result
 does not depend on the other rows of a batch of 16 or more; fewer are summed as the dense path's
 own batch). A model for which this cannot hold (a nonzero bias, an overlapping first kernel, more
-than 32 channels, a summation order not reproduced here) is refused by `exact_blocker`'s reason;
+than 64 channels, a summation order not reproduced here) is refused by `exact_blocker`'s reason;
 SCTNTracker then runs the dense path.
 """
 

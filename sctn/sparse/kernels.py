@@ -185,7 +185,8 @@ def _conv_cells(cells_in, n_in, slot_in, masks_in, alive_in, s_in, s_out, k, st,
     the layer below that fired) and their spikes (masks_in, alive_in; see _spike_masks). w (k k C_in x
     C_out, flat) rows in (kernel row, column, input channel) order. A window's spikes are added per step
     in the order torch sums it: by blocks of blk input channels, within a block by kernel row, column,
-    channel (blk >= C_in: one block; blk < 0: blocks of -blk, each its own sum, see _window_currents). Output likewise (cells_out, slot_out, masks_out, alive_out);
+    channel (blk >= C_in: one block; blk < 0: blocks of -blk, each its own sum, see _window_currents). Output
+    likewise (cells_out, slot_out, masks_out, alive_out);
     returns their number."""
     n_out = 0
     for j in range(n_in):

@@ -28,8 +28,9 @@ class TrainConfigError(ValueError):
 
 class TrainBudget(Strict):
     """Settings every trainer has: epochs, segments per epoch and per step, Adam's rate, seed, the smallest usable
-    box (px), validation (every N steps, on M segments; a tracking score every K steps) and a time budget (minutes). Bad values raise
-    TrainConfigError naming the first bad field (numbers are not strict here: Python callers pass numpy ones)."""
+    box (px), validation (every N steps, on M segments; a tracking score every K steps) and a time budget
+    (minutes). Bad values raise TrainConfigError naming the first bad field (numbers are not strict here: Python
+    callers pass numpy ones)."""
 
     epochs: int = Field(3, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)
@@ -39,7 +40,7 @@ class TrainBudget(Strict):
     min_box_px: float = Field(8.0, ge=0)
     val_every: int = Field(50, ge=1)
     val_segments: int = Field(40, ge=0)
-    val_arscore_every: int | None = Field(None, ge=1)  # steps between validation tracking scores (a caller's); None = off
+    val_arscore_every: int | None = Field(None, ge=1)  # steps between validation tracking scores; None = off
     max_minutes: float | None = Field(None, gt=0)
 
     def __init__(self, **data: Any) -> None:

@@ -32,8 +32,8 @@ from sctn.loss import ErrorTime, LossKind, error_voltages, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
-from sctn.training.loop import (TrainBudget, TrainConfigError, Validation, fit, held_out,  # noqa: F401  (TrainConfigError)
-                                score_note, spread)
+from sctn.training.loop import (TrainBudget, TrainConfigError, Validation, fit,  # noqa: F401  (TrainConfigError)
+                                held_out, score_note, spread)
 
 NEARLY_SILENT = 0.1  # mean target V_max on validation positives below this: a nearly silent network
 MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment

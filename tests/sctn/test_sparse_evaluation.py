@@ -91,7 +91,8 @@ def _check_equal(net: SCTN, events: EventBatch, boxes: np.ndarray, t0_us: int = 
 
 
 @pytest.mark.parametrize("cfg", [{"tail_steps": 0}, {"tail_steps": 2, "channels": (4, 8, 4), "fc": (16, 8)},
-                                 {"tail_steps": 0, "channels": (8, 12, 16), "fc": (32, 16)}])
+                                 {"tail_steps": 0, "channels": (8, 12, 16), "fc": (32, 16)},
+                                 {"tail_steps": 0, "background_neuron": False}])
 def test_sparse_evaluation_equals_the_dense_path_in_every_layer(cfg):
     net = _net(1, **cfg)
     counts = _check_equal(net, _events(2), _boxes(3))
