@@ -34,7 +34,7 @@ from torch.nn import functional as F
 from dvsot.events import EventBatch
 from sctn.encoding import PRESET, encode_boxes
 from sctn.energy import count_macs
-from sctn.network import NetworkConfig
+from sctn.network import NetworkConfig, drop_background
 
 KIND = "sctn_ann"
 TWIN_INPUTS = ("bins", "sum")
@@ -67,6 +67,8 @@ class SCTNTwin(nn.Module):
             nn.init.kaiming_uniform_(layer.weight, a=0.0)
             if layer.bias is not None:
                 nn.init.zeros_(layer.bias)
+        if not cfg.background_neuron:  # as SCTN leaves it out (sctn.network)
+            drop_background(self.fcs[2])
 
     def frame(self, x: torch.Tensor) -> torch.Tensor:
         """SCTN's input spikes (B, T, 2, H, W) as the twin's frame (B, C, H, W)."""
@@ -84,7 +86,11 @@ class SCTNTwin(nn.Module):
             h = fc(h)
             if k < 2:
                 h = F.relu(h)
-        return h[:, None]
+        return self.with_background(h)[:, None]
+
+    def with_background(self, h: torch.Tensor) -> torch.Tensor:
+        """Output units (..., outputs) in the (..., 2) layout, a constant 0 for a background unit left out."""
+        return h if self.cfg.background_neuron else torch.cat([torch.zeros_like(h), h], dim=-1)
 
     def score(self, x: torch.Tensor) -> torch.Tensor:
         """The target unit's output per candidate (B,), SCTN's maximum target voltage."""
@@ -119,7 +125,7 @@ class SCTNTwin(nn.Module):
             h = h.flatten(1)
             for j, fc in enumerate(self.fcs):
                 h = fc(h) if j == 2 else F.relu(fc(h))
-        return h[:, 1].numpy()
+        return h[:, -1].numpy()  # the target unit: the last one, with or without the background unit
 
 
 def canvas_pixels(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray,

@@ -125,7 +125,7 @@ def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, b
     macs = rec["mix_macs"]
     # C-LIF updates that run: every conv neuron over the region, the fc neurons per row they ran on, the outputs
     states = sum(float(rec[name].numel()) for name in ("conv1", "conv2", "conv3", "fc1", "fc2"))
-    states += float(rec["fc2"].shape[0] * rec["fc2"].shape[1] * 2)
+    states += float(rec["fc2"].shape[0] * rec["fc2"].shape[1] * model.fcs[2].out_features)
     return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]), "ac_ops": ac,
             "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ,
             "state_updates": states}
@@ -155,10 +155,10 @@ def count_macs(fn, *inputs: torch.Tensor) -> dict:
 
 
 def snn_state_updates(cfg) -> float:
-    """C-LIF state updates of one evaluation of an SCTN of config cfg: every neuron (conv maps, fc layers, the two
-    outputs) at every step, tail steps included."""
+    """C-LIF state updates of one evaluation of an SCTN of config cfg: every neuron (conv maps, fc layers, the
+    output neurons that exist) at every step, tail steps included."""
     sizes = cfg.conv_sizes()
-    neurons = sum(c * n * n for c, n in zip(cfg.channels, sizes)) + sum(cfg.fc) + 2
+    neurons = sum(c * n * n for c, n in zip(cfg.channels, sizes)) + sum(cfg.fc) + cfg.outputs()
     return float(neurons * (cfg.steps + cfg.tail_steps))
 
 

@@ -5,6 +5,12 @@ Input: the events of one 10 ms segment as T = 10 one-millisecond steps x 2 polar
 (0 = background, 1 = target) at every step. Each convolution runs once over all T steps as one
 (T * B) batch (it is linear); only the neurons' recurrence loops over time.
 
+The paper's two output neurons are both there by default; `background_neuron=False` (a named deviation, the
+ablation row `no_background_neuron`) leaves the background neuron out of the network and so out of its operation
+counts (fc2's spikes then drive one output synapse, not two): the target neuron's weights are drawn as the
+preset draws them (the background's row dropped), and the output voltages keep their (..., 2) layout with a
+constant 0 where the background neuron was, so every reader of index 1 (the target) runs unchanged.
+
 The defaults are the paper's preset: T = 10 steps of 1 ms and no more, and layers without biases, so
 a neuron that no event reaches stays silent (the paper: "only the neurons corresponding to the events
 within the bounding box will emit spikes"). `tail_steps` (extra empty steps that let late events reach
@@ -48,6 +54,11 @@ class NetworkConfig(BaseModel):
     alpha_m: float = ALPHA_M
     alpha_s: float = ALPHA_S
     surrogate_width: float = 1.0
+    background_neuron: bool = True  # the paper's background output neuron; False: left out (a named deviation)
+
+    def outputs(self) -> int:
+        """Output neurons that exist: background and target (2), or the target alone (1)."""
+        return 2 if self.background_neuron else 1
 
     def receptive_field(self) -> tuple[int, int]:
         """(total stride, receptive-field size) of the last convolution's cells, in input pixels."""
@@ -78,10 +89,12 @@ class SCTN(nn.Module):
         flat = cfg.channels[-1] * cfg.conv_sizes()[-1] ** 2
         widths = (flat,) + tuple(cfg.fc) + (2,)
         self.fcs = nn.ModuleList(nn.Linear(widths[i], widths[i + 1], bias=cfg.bias) for i in range(3))
-        sizes = list(cfg.channels) + list(cfg.fc) + [2]
+        sizes = list(cfg.channels) + list(cfg.fc) + [cfg.outputs()]
         self.neurons = nn.ModuleList(CLIF(n, cfg.alpha_m, cfg.alpha_s, surrogate_width=cfg.surrogate_width)
                                      for n in sizes)
         self._init_weights()
+        if not cfg.background_neuron:
+            drop_background(self.fcs[2])
 
     def _init_weights(self) -> None:
         for layer in list(self.convs) + list(self.fcs):
@@ -165,7 +178,12 @@ class SCTN(nn.Module):
                 spikes.append(h)
         if record:
             spikes.append(h)
-        return v.transpose(0, 1), spikes
+        return self.with_background(v).transpose(0, 1), spikes
+
+    def with_background(self, v: torch.Tensor) -> torch.Tensor:
+        """The output layer's voltages (..., outputs) in the (..., 2) layout: as they are with the background neuron,
+        else with a constant 0 in its place (index 0)."""
+        return v if self.cfg.background_neuron else torch.cat([torch.zeros_like(v), v], dim=-1)
 
     def receptive_field(self) -> tuple[int, int]:
         """(total stride, receptive-field size) of the last convolution's cells, in input pixels (its config's)."""
@@ -305,6 +323,7 @@ class SCTN(nn.Module):
         h, v = self.neurons[4](self.fcs[1](h))
         rec["fc2"] = h
         _, v = self.neurons[5](self.fcs[2](h))
+        v = self.with_background(v)
         if expand is not None:
             v = v[:, expand]
         return (v.transpose(0, 1), rec) if record else v.transpose(0, 1)
@@ -328,6 +347,15 @@ class SCTN(nn.Module):
     def forward_record(self, x: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
         """Voltages and every layer's spikes (input first, each (T, B, ...)), for energy accounting."""
         return self._run(x, record=True)
+
+
+def drop_background(out: nn.Linear) -> None:
+    """Keep only the target's row (index 1) of a two-output layer, in place: the background output left out."""
+    with torch.no_grad():
+        out.weight = nn.Parameter(out.weight[1:].clone())
+        if out.bias is not None:
+            out.bias = nn.Parameter(out.bias[1:].clone())
+    out.out_features = 1
 
 
 def window_rate(layer: nn.Module, spikes: torch.Tensor) -> float:

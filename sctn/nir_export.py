@@ -56,7 +56,12 @@ from sctn.network import SCTN
 DT_S = 1e-3  # C-LIF's step in the paper preset (1 ms), in NIR's unit (seconds); a network's own is its step_us
 DISCRETISATIONS = ("exact", "euler")
 LAYER_NAMES = ("conv1", "conv2", "conv3", "fc1", "fc2", "out")
-TARGET = 1  # index of the target neuron in out_lif (0 is the background neuron)
+TARGET = 1  # index of the target neuron in the network's output voltages and out_lif (0 is the background neuron)
+
+
+def target_neuron(cfg) -> int:
+    """Index of the target neuron in out_lif: TARGET, or 0 for a network without the background neuron."""
+    return TARGET if cfg.background_neuron else 0
 
 
 def clif_constants(model: SCTN) -> list[dict[str, np.ndarray]]:
@@ -127,7 +132,7 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
         nodes[f"{name}_lif"] = _cubalif(nir, consts[3 + k], (fc.out_features,), model.neurons[3 + k].theta,
                                         discretisation, dt)
         chain += [name, f"{name}_lif"]
-    nodes["output"] = nir.Output(output_type={"output": np.array([2])})
+    nodes["output"] = nir.Output(output_type={"output": np.array([model.fcs[2].out_features])})
     chain.append("output")
     edges = list(zip(chain[:-1], chain[1:]))
     metadata = {
@@ -140,7 +145,10 @@ def sctn_graph(model: SCTN, discretisation: Literal["exact", "euler"] = "exact",
         "input": (f"per step of dt, channel 0 OFF and 1 ON events inside the candidate box on a {cfg.input_size} x "
                   f"{cfg.input_size} canvas centred on it (dvsot sctn.encoding.encode_boxes), 1 where a pixel had "
                   f"an event in the step"),
-        "target": f"out_lif neuron {TARGET} (0 is background); its maximum voltage over the steps scores a box",
+        "target_index": target_neuron(cfg),
+        "target": (f"out_lif neuron {target_neuron(cfg)} ("
+                   + ("0 is background" if cfg.background_neuron else "no background neuron")
+                   + "); its maximum voltage over the steps scores a box"),
         "source": source,
     }
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata=metadata)

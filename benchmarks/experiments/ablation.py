@@ -13,6 +13,9 @@ then the table prints mean and standard deviation over seeds.
     python -m benchmarks.experiments.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
     python -m benchmarks.experiments.ablation --train data/dvsot21 --val-data data/val --test data/val --test-split any \
         --rows paper error_time_max calibration init_fluctuation --seeds 5 --out runs/choices   # chosen on validation
+    python -m benchmarks.experiments.ablation --train data/dvsot21 --test data/dvsot21 \
+        --rows paper widths_x2 widths_x4 --seeds 3 --jobs 1 --out runs/widths   # + widths_mdnet: hours; speed: idle
+    python -m benchmarks.experiments.ablation ... --rows paper background_term no_background_neuron --seeds 5
 
 With --scheduler local:N | tcp://HOST:PORT each (row, seed) is one task on Dask (dvsot.runtime.dask_tasks.run_tasks, as
 `dvsot generate` and `dvsot bench` use it); the workers need the data files and --out at the same paths. A
@@ -32,7 +35,17 @@ from pathlib import Path
 
 import numpy as np
 
+from sctn.network import NetworkConfig
 from sctn.samples import TRACK
+
+PRESET_NET = NetworkConfig()
+MDNET_WIDTHS = {"channels": (96, 256, 512), "fc": (512, 512)}  # MDNet's conv1-3 and fc4-5 (Nam and Han 2016)
+
+
+def scaled_widths(factor: int) -> dict:
+    """NetworkConfig fields of the preset's convolution and fully connected widths times `factor`."""
+    return {"channels": tuple(factor * c for c in PRESET_NET.channels), "fc": tuple(factor * n for n in PRESET_NET.fc)}
+
 
 # row -> (TrainConfig fields, NetworkConfig fields, SCTNTracker options) that differ from the paper preset
 ROWS: dict[str, tuple[dict, dict, dict]] = {
@@ -48,11 +61,20 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
     "finetune_on_reinit": ({}, {}, {"finetune_on_reinit": True}),
     "squared_error": ({"squared_error": True}, {}, {}),
+    # the background output neuron: trained by the mirrored error, or left out of the network and its op counts
+    # (the preset keeps it, untrained: the paper has two output neurons and trains the target's voltage)
     "background_term": ({"background_term": True}, {}, {}),
+    "no_background_neuron": ({}, {"background_neuron": False}, {}),
     "tail_steps": ({}, {"tail_steps": 2}, {}),
     "biases": ({}, {"bias": True}, {}),
     "loss_linear": ({"loss": "linear"}, {}, {}),
     "loss_basic": ({"loss": "basic"}, {}, {}),
+    # widths from the preset's (conv 8/16/16, fc 64/32) towards MDNet's; the paper gives none. Wider than 32
+    # channels a convolution is evaluated densely (sctn.sparse.evaluate.exact_blocker), and MDNet's widths train and
+    # track one to two orders of magnitude slower than the preset's
+    "widths_x2": ({}, scaled_widths(2), {}),
+    "widths_x4": ({}, scaled_widths(4), {}),
+    "widths_mdnet": ({}, MDNET_WIDTHS, {}),
 }
 METRICS = ("A", "R", "ARscore")
 ENERGY_SEGMENTS = 64  # test segments sampled (seed 0, as the energy table) for each run's energy figures
@@ -94,11 +116,14 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
         minutes, silent = history["minutes"], history.get("silent")
     ious, tuned = [], {}
+    tracked, seconds, init_seconds = 0, 0.0, 0.0
     for f in test_files:
         bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw))
         with Dataset(f) as ds:
             res = run_sequence(bench, ds, "sctn", max_segments=max_segments)
         ious.append(res.iou)
+        tracked, seconds, init_seconds = (tracked + res.tracked_segments, seconds + res.tracker_seconds,
+                                          init_seconds + res.init_seconds)
         tuned[f] = bench.tracker.model  # fine-tuned on the file's first segment (and re-initialisations, if so)
     s = pooled(ious)
     energy = run_energy(tuned, test_files, n_candidates, track_kw)
@@ -108,7 +133,8 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
             "target_vmax_pos": history.get("target_vmax_pos"), "nearly_silent": history.get("nearly_silent"),
             "ac_ops_per_evaluation": energy["per_evaluation"]["ac_ops"],
             "ac_ops_per_segment": energy["per_segment"]["ac_ops"],
-            "state_updates_per_evaluation": energy["per_evaluation"]["state_updates"]}
+            "state_updates_per_evaluation": energy["per_evaluation"]["state_updates"],
+            "segments_per_s": tracked / seconds if seconds > 0 else None, "init_seconds": init_seconds}
 
 
 def run_energy(tuned: dict, test_files: list[Path], n_candidates: int, track_kw: dict) -> dict:
@@ -126,7 +152,7 @@ def summarise(runs: list[dict]) -> dict:
     out: dict = {}
     for row in dict.fromkeys(r["row"] for r in runs):
         rs = [r for r in runs if r["row"] == row]
-        keys = METRICS + ("ac_ops_per_segment", "ac_ops_per_evaluation", "target_vmax_pos")
+        keys = METRICS + ("ac_ops_per_segment", "ac_ops_per_evaluation", "target_vmax_pos", "segments_per_s")
         vals = {k: [r[k] for r in rs if r.get(k) is not None] for k in keys}
         out[row] = {"seeds": len(rs), "silent": sum(bool(r.get("silent")) for r in rs),
                     "nearly_silent": sum(bool(r.get("nearly_silent")) for r in rs),
@@ -136,13 +162,17 @@ def summarise(runs: list[dict]) -> dict:
 
 
 def format_table(summary: dict) -> str:
-    """The ablation as a markdown table: mean +- std over seeds per row."""
-    lines = ["| row | A | R | ARscore | AC per evaluation | AC per segment | seeds | silent | nearly silent |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    """The ablation as a markdown table: mean +- std over seeds per row; tracking speed is segments per second of the
+    tracker's update time (fine-tuning apart), one thread, as loaded as the machine was."""
+    lines = ["| row | A | R | ARscore | AC per evaluation | AC per segment | segments/s | seeds | silent "
+             "| nearly silent |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for row, r in summary.items():
         cells = [f"{r['mean'][k]:.3f} ± {r['std'][k]:.3f}" for k in METRICS]
         ops = [r["mean"].get(k) for k in ("ac_ops_per_evaluation", "ac_ops_per_segment")]
+        speed = r["mean"].get("segments_per_s")
         lines.append(f"| {row} | " + " | ".join(cells) + "".join(f" | {v:.2e}" if v is not None else " | " for v in ops)
+                     + (f" | {speed:.2f}" if speed is not None else " | ")
                      + f" | {r['seeds']} | {r.get('silent', 0)} | {r.get('nearly_silent', 0)} |")
     return "\n".join(lines)
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 LIF_NODES = ("conv1_lif", "conv2_lif", "conv3_lif", "fc1_lif", "fc2_lif", "out_lif")
-TARGET = 1
+TARGET = 1  # the target in dvsot's output voltages; in a graph, its metadata's target_index (0 without background)
 V_TOLERANCE = 1e-4  # |V_max difference| within which the target's V_max counts as equal (float32 against float64)
 
 
@@ -67,7 +67,7 @@ def reference(files: list[Path], out: Path, checkpoint: str | None, segments: in
     from dvsot.dataset import Dataset
     from sctn.checkpoint import default_checkpoint_path, load_checkpoint
     from sctn.encoding import encode_boxes
-    from sctn.nir_export import export_nir
+    from sctn.nir_export import export_nir, target_neuron
     from sctn.nir_sim import run_graph
     from sctn.samples import TRACK, propose
 
@@ -104,7 +104,7 @@ def reference(files: list[Path], out: Path, checkpoint: str | None, segments: in
                                                                        "subtract")):
             outputs, v = run_graph(graph, steps_first, float(graph.metadata["dt"]), integrator, reset)
             results[f"nir_sim: {disc} graph, {integrator} integrator, reset {reset}"] = compare(
-                ref_spikes, ref_vmax, outputs, v["out_lif"][:, :, TARGET].max(axis=0), candidates)
+                ref_spikes, ref_vmax, outputs, v["out_lif"][:, :, target_neuron(model.cfg)].max(axis=0), candidates)
     (out / "nir_sim.json").write_text(json.dumps(results, indent=2))
     return results
 
@@ -131,10 +131,11 @@ def norse_runs(out: Path) -> dict:
             spikes = {name: np.zeros(s.shape, bool) for name, s in zip(LIF_NODES, ref_spikes)}
             vmax = np.full(shape[0], -np.inf)
             out_lif = net.get_submodule("out_lif")
+            target = int(graph.metadata.get("target_index", TARGET))
             with torch.no_grad():
                 for i in range(shape[0]):
                     state = None
-                    v_prev = torch.zeros(2)
+                    v_prev = torch.zeros(ref_spikes[-1].shape[2])
                     for t in range(shape[1]):
                         _, state = net(x[i, t], state)
                         for name in LIF_NODES:
@@ -143,7 +144,7 @@ def norse_runs(out: Path) -> dict:
                         (syn_state, lif_state), = state.state["out_lif"]  # the executor keeps (module state,)
                         p = out_lif.lif.p
                         v_pre = v_prev + out_lif.lif.dt * p.tau_mem_inv * (p.v_leak - v_prev + out_lif.r * syn_state.v)
-                        vmax[i] = max(vmax[i], float(v_pre[TARGET]))
+                        vmax[i] = max(vmax[i], float(v_pre[target]))
                         v_prev = lif_state.v
             results[f"norse {norse.__version__}: {disc} graph, reset_{reset_name}"] = compare(
                 ref_spikes, ref["vmax"], {k: v.astype(np.float64) for k, v in spikes.items()}, vmax,

@@ -5,7 +5,7 @@ Examples:
   dvsot train --data 'data/dvsot21/*.h5' --epochs 2 --loss linear --seed 3 -o runs/sctn_linear.pt
   dvsot train --model sctn_ann -o runs/sctn_ann.pt        # SCTN's layers with ReLU, trained the same way
   dvsot train --model siamfc -o runs/siamfc.pt            # SiamFC on ATSLTD frames
-  dvsot train --val-data data/dvsot21_val --val-every 50 --val-arscore-every 200 -o runs/sctn.pt  # learning curves
+  dvsot train --val-data data/val --val-every 50 --val-arscore-every 200 -o runs/sctn.pt  # learning curves (any model)
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ MODELS = ("sctn", "sctn_ann", "siamfc")
 SCTN_LIKE = ("sctn", "sctn_ann")
 # flags that only some models have: {flag dest: models}; a flag is given when its value is not None
 ONLY = {"loss": SCTN_LIKE, "channels": SCTN_LIKE, "fc": SCTN_LIKE, "squared_error": SCTN_LIKE,
-        "background_term": SCTN_LIKE, "bias": SCTN_LIKE, "ops_penalty": ("sctn",), "calibrate": ("sctn",),
-        "tail_steps": ("sctn",), "input": ("sctn_ann",), "error_time": SCTN_LIKE, "init": ("sctn",),
-        "fluctuation_xi": ("sctn",), "val_data": SCTN_LIKE, "val_every": SCTN_LIKE, "val_segments": SCTN_LIKE,
-        "val_arscore_every": SCTN_LIKE, "val_arscore_segments": SCTN_LIKE}
+        "background_term": SCTN_LIKE, "no_background_neuron": SCTN_LIKE, "bias": SCTN_LIKE,
+        "ops_penalty": ("sctn",), "calibrate": ("sctn",), "tail_steps": ("sctn",), "input": ("sctn_ann",),
+        "error_time": SCTN_LIKE, "init": ("sctn",),
+        "fluctuation_xi": ("sctn",)}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -47,6 +47,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="deviation from the paper: square each sample's eq.-5 error (an ablation row)")
     p.add_argument("--background-term", action="store_true", default=None,
                    help="deviation from the paper: add the mirrored background-neuron error (an ablation row)")
+    p.add_argument("--no-background-neuron", action="store_true", default=None,
+                   help="deviation from the paper: leave the background output neuron out of the network and its "
+                        "operation counts (an ablation row)")
     p.add_argument("--calibrate", action="store_true", default=None,
                    help="sctn: the same as --init calibrate")
     p.add_argument("--init", choices=["kaiming", "calibrate", "fluctuation"], default=None,
@@ -65,7 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="validation segments, spread over the files (default 40)")
     p.add_argument("--val-arscore-every", type=int, default=None, metavar="K",
                    help="with --val-data: also track the validation sequences every K steps and at the end, and "
-                        "record their ARscore (a copy of the network, fine-tuned as the tracker does)")
+                        "record their ARscore (sctn, sctn_ann: a copy of the network, fine-tuned as the tracker "
+                        "does; siamfc: the network as it is)")
     p.add_argument("--val-arscore-segments", type=int, default=None, metavar="N",
                    help="with --val-arscore-every: track at most N segments of each validation sequence")
     p.add_argument("--tail-steps", type=int, default=None,
@@ -93,7 +97,7 @@ def _network_config(args: argparse.Namespace):
     problem = range_problem("--tail-steps", tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
     if problem:
         raise UserError(problem)
-    net = {"tail_steps": tail, "bias": bool(args.bias)}
+    net = {"tail_steps": tail, "bias": bool(args.bias), "background_neuron": not args.no_background_neuron}
     for name in ("channels", "fc"):
         sizes = getattr(args, name)
         if sizes is not None:
@@ -117,14 +121,14 @@ def _train_config(args: argparse.Namespace):
             raise UserError(f"--{dest.replace('_', '-')}: not a setting of --model {args.model} "
                             f"(only of {', '.join(models)})")
     common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr", "val_every",
-                                            "val_segments") if getattr(args, k) is not None}
+                                            "val_segments", "val_arscore_every") if getattr(args, k) is not None}
     common.update(seed=args.seed, max_minutes=args.max_minutes)
     try:
         if args.model == "siamfc":
             from benchmarks.trackers.siamfc.train import SiamFCTrainConfig
 
             return SiamFCTrainConfig(**common)
-        extra = {k: getattr(args, k) for k in ("error_time", "init", "fluctuation_xi", "val_arscore_every")
+        extra = {k: getattr(args, k) for k in ("error_time", "init", "fluctuation_xi")
                  if getattr(args, k) is not None}
         return TrainConfig(**common, **extra, loss=args.loss or "exp", ops_penalty=args.ops_penalty or 0.0,
                            squared_error=bool(args.squared_error), background_term=bool(args.background_term),
@@ -144,21 +148,29 @@ def _trainer(model: str):
     return train
 
 
-def validation_scorer(files: list, max_segments: int | None, seed: int):
-    """model -> {"arscore", "accuracy", "robustness"} of SCTNTracker (or the twin in it) on the validation
-    sequences: a fine-tuned copy of the network per sequence, the paper's protocol with re-initialisation."""
+def validation_scorer(model_kind: str, files: list, max_segments: int | None, seed: int):
+    """model -> {"arscore", "accuracy_tracking", "robustness"} of the model's tracker on the validation sequences with
+    the paper's protocol (re-initialisation): SCTNTracker for sctn and sctn_ann (a fine-tuned copy of the network per
+    sequence), SiamFCTracker for siamfc (the network read as it is)."""
+    def tracker(model):
+        if model_kind == "siamfc":
+            from benchmarks.trackers.siamfc.tracker import SiamFCTracker
+
+            return SiamFCTracker.from_model(model)
+        from benchmarks.trackers.sctn import SCTNBenchTracker
+        from sctn.tracker import SCTNTracker
+
+        return SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed))
+
     def score(model) -> dict:
         from benchmarks.evaluation.metrics import pooled
         from benchmarks.evaluation.protocol import run_sequence
-        from benchmarks.trackers.sctn import SCTNBenchTracker
         from dvsot.dataset import Dataset
-        from sctn.tracker import SCTNTracker
 
         ious = []
         for f in files:
             with Dataset(f) as ds:
-                tracker = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed))
-                ious.append(run_sequence(tracker, ds, "sctn", max_segments=max_segments).iou)
+                ious.append(run_sequence(tracker(model), ds, model_kind, max_segments=max_segments).iou)
         s = pooled(ious)
         return {"arscore": s.arscore, "accuracy_tracking": s.accuracy, "robustness": s.robustness}
     return score
@@ -198,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
         if val_files:
             validation["val_files"] = val_files
             if args.val_arscore_every is not None:
-                validation["val_score"] = validation_scorer(val_files, args.val_arscore_segments, args.seed)
+                validation["val_score"] = validation_scorer(args.model, val_files, args.val_arscore_segments, args.seed)
         model, history = _trainer(args.model)(files, cfg, progress=not args.quiet, **validation)
     except UserError:  # already names its file (a UserError is a ValueError too)
         raise

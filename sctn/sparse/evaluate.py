@@ -16,12 +16,13 @@ never receives current stays at V = 0 and never fires, so only what events reach
 
 Outputs equal the dense path's bit for bit, not just to rounding: each current is summed in the
 order torch's CPU convolution sums it (oneDNN: by blocks of input channels, 16 with AVX-512 and 8
-with AVX2, then kernel row, column, channel; summation_blocks finds the block on this machine by
+with AVX2, then kernel row, column, channel; for some shapes, e.g. 32 input channels with AVX-512, each
+block on its own and the blocks' sums added in order; summation_blocks finds the order on this machine by
 reproducing a convolution of the dense path's shape), the neurons repeat
 sctn.neurons._clif_steps's arithmetic, and the fully connected layers are torch's (a row's result
 does not depend on the other rows of a batch of 16 or more; fewer are summed as the dense path's
 own batch). A model for which this cannot hold (a nonzero bias, an overlapping first kernel, more
-than 32 channels, a summation order not reproduced here) is refused by `exact_blocker`'s reason;
+than 64 channels, a summation order not reproduced here) is refused by `exact_blocker`'s reason;
 SCTNTracker then runs the dense path.
 """
 
@@ -48,8 +49,8 @@ def exact_blocker(model: SCTN) -> str | None:
             return f"{name} has a nonzero bias (neurons without events can fire)"
     if cfg.kernels[0] != cfg.strides[0] or 2 * cfg.kernels[0] ** 2 > 32:
         return "conv1's kernel must equal its stride and hold at most 32 inputs (2 x k x k)"
-    if max(cfg.channels) > 32:
-        return "more than 32 channels in a convolution"
+    if max(cfg.channels) > MAX_CHANNELS:
+        return f"more than {MAX_CHANNELS} channels in a convolution (a cell's spikes are the bits of an int64)"
     if cfg.steps > 31:
         return "more than 31 time steps with events (a pixel's events are kept as 2 bits per step of an int64)"
     blocks = summation_blocks(model)
@@ -71,7 +72,7 @@ def summation_blocks(model: SCTN) -> tuple[int, int, int] | str:
     for k, conv in enumerate(model.convs):
         blk = _conv_block(conv.in_channels, conv.out_channels, conv.kernel_size[0], conv.stride[0], sizes[k],
                           conv.bias is not None, batch, torch.get_num_threads())
-        if blk is None or (k == 0 and blk < conv.in_channels):
+        if blk is None or (k == 0 and blk != conv.in_channels):
             return f"conv{k + 1}: torch sums its windows in an order not reproduced here"
         blocks.append(blk)
     for k, fc in enumerate(model.fcs):
@@ -81,12 +82,15 @@ def summation_blocks(model: SCTN) -> tuple[int, int, int] | str:
 
 
 DENSE_CHUNK = 64  # candidates per batch of the dense path
+MAX_CHANNELS = 64  # a convolution's channels: one bit each in a cell's int64 spike mask per step
 
 
 @functools.lru_cache(maxsize=64)
 def _conv_block(c_in: int, c_out: int, k: int, stride: int, size: int, bias: bool, batch: int,
                 threads: int) -> int | None:
-    """The input-channel block of torch's window sums for a convolution of this shape on a batch of `batch`, or None."""
+    """The input-channel block of torch's window sums for a convolution of this shape on a batch of `batch`: blk for
+    one running sum through the blocks, -blk for each block summed on its own and the blocks' sums added in order;
+    or None."""
     gen = torch.Generator().manual_seed(12)
     w = torch.randn(c_out, c_in, k, k, generator=gen)
     x = (torch.rand(batch, c_in, size, size, generator=gen) < 0.4).float()
@@ -94,16 +98,27 @@ def _conv_block(c_in: int, c_out: int, k: int, stride: int, size: int, bias: boo
         ref = torch.nn.functional.conv2d(x, w, torch.zeros(c_out) if bias else None, stride)[:8, 0].numpy()
     xs, w0 = x[:8].numpy(), w[0].numpy()
     out = ref.shape[-1]
+
+    def block_sum(c0: int, blk: int, acc: np.ndarray) -> np.ndarray:
+        for ky in range(k):
+            for kx in range(k):
+                for c in range(c0, min(c0 + blk, c_in)):
+                    window = xs[:, c, ky:ky + stride * (out - 1) + 1:stride, kx:kx + stride * (out - 1) + 1:stride]
+                    acc = acc + window * w0[c, ky, kx]
+        return acc
+
     for blk in sorted({c_in, 16, 8, 4, 2, 1} - {b for b in (16, 8, 4, 2, 1) if b > c_in}, reverse=True):
         acc = np.zeros_like(ref)
-        for c0 in range(0, c_in, blk):
-            for ky in range(k):
-                for kx in range(k):
-                    for c in range(c0, min(c0 + blk, c_in)):
-                        window = xs[:, c, ky:ky + stride * (out - 1) + 1:stride, kx:kx + stride * (out - 1) + 1:stride]
-                        acc = acc + window * w0[c, ky, kx]
+        for c0 in range(0, c_in, blk):  # one running sum through the blocks
+            acc = block_sum(c0, blk, acc)
         if np.array_equal(acc, ref):
             return blk
+        if blk < c_in:  # each block summed on its own, then the blocks' sums in order (oneDNN, 32 channels on AVX-512)
+            acc = np.zeros_like(ref)
+            for c0 in range(0, c_in, blk):
+                acc = acc + block_sum(c0, blk, np.zeros_like(ref))
+            if np.array_equal(acc, ref):
+                return -blk
     return None
 
 
@@ -159,7 +174,7 @@ def candidate_record(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np
     """Voltages as candidate_voltages and, per layer of sctn.energy.LAYER_NAMES, each candidate's spike count and
     the AC operations they drive (spikes x fan-out, as sctn.energy.layer_ops counts them): "spikes" and "ac_ops",
     each {layer: (N,) float64}; "maps": the spikes of conv3 (flattened as fc1 reads them), fc1, fc2 and the
-    output layer, each (T + tail, N, width) as forward_record gives them."""
+    output layer (its neurons that exist), each (T + tail, N, width) as forward_record gives them."""
     return _evaluate(model, events, t0_us, boxes_xywh, record=True)
 
 
@@ -176,7 +191,7 @@ def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarra
     if n == 0:
         maps = {"conv3": torch.zeros(total, 0, cfg.channels[2] * cfg.conv_sizes()[2] ** 2),
                 "fc1": torch.zeros(total, 0, cfg.fc[0]), "fc2": torch.zeros(total, 0, cfg.fc[1]),
-                "output": torch.zeros(total, 0, 2)}
+                "output": torch.zeros(total, 0, model.fcs[2].out_features)}
         none = {name: np.zeros(0) for name in LAYER_NAMES}
         return torch.zeros(0, total, 2), {"spikes": none, "ac_ops": dict(none), "maps": maps} if record else None
     geom = np.ascontiguousarray(box_canvas(boxes, size))
@@ -272,7 +287,7 @@ def _fc_layers(model: SCTN, rows3: np.ndarray, row_of: np.ndarray, used: int, to
         h1, _ = model.neurons[3](current.view(n, total, -1).transpose(0, 1))  # (T, N, width), as the dense path
         h2, _ = model.neurons[4](model.fcs[1](h1))
         out, v = model.neurons[5](model.fcs[2](h2))
-    return [h1, h2, out, v]
+    return [h1, h2, out, model.with_background(v)]
 
 
 def _segment_events(events: EventBatch, t0_us: int, geom: np.ndarray, steps: int, step_us: int):

@@ -140,16 +140,23 @@ def _window_currents(cells_out, n_out, slot_in, masks_in, s_in, s_out, k, st, w,
                      cur) -> None:  # pragma: no cover - compiled
     """The currents of output cells cells_out[:n_out] into cur (steps x width flat, cell j at columns j ch ..):
     the weight rows of the spikes in each window (see _conv_cells), in torch's order per (cell, step); the
-    steps are independent sums, interleaved so that their additions overlap."""
+    steps are independent sums, interleaved so that their additions overlap. blk > 0: one running sum over the
+    input-channel blocks of blk; blk < 0: each block of -blk channels summed from zero on its own, the blocks' sums
+    then added to the cell's current in block order."""
     c_in = w.shape[0] // (k * k * ch)
+    partial = blk < 0
+    b = -blk if partial else blk
+    acc = np.zeros(steps * ch if partial else 1, np.float32)  # one block's sums (partial order)
     for t in range(steps):
         cur[t * width:t * width + n_out * ch] = 0
     for j in range(n_out):
         cell = cells_out[j]
         oy, ox = cell // s_out, cell % s_out
         col = j * ch
-        for c0 in range(0, c_in, blk):
-            keep = ((1 << min(blk, c_in - c0)) - 1) << c0
+        for c0 in range(0, c_in, b):
+            keep = ((1 << min(b, c_in - c0)) - 1) << c0
+            if partial:
+                acc[:] = 0
             for ky in range(k):
                 for kx in range(k):
                     src = slot_in[(oy * st + ky) * s_in + ox * st + kx]
@@ -159,8 +166,14 @@ def _window_currents(cells_out, n_out, slot_in, masks_in, s_in, s_out, k, st, w,
                     for t in range(steps):
                         m = masks_in[src * steps + t] & keep
                         while m:
-                            _add_row(cur, t * width + col, w, base + _ctz(m), ch)
+                            if partial:
+                                _add_row(acc, t * ch, w, base + _ctz(m), ch)
+                            else:
+                                _add_row(cur, t * width + col, w, base + _ctz(m), ch)
                             m &= m - 1
+            if partial:
+                for t in range(steps):
+                    _add_row(cur, t * width + col, acc, t, ch)
 
 
 @numba.njit(cache=True)
@@ -172,7 +185,8 @@ def _conv_cells(cells_in, n_in, slot_in, masks_in, alive_in, s_in, s_out, k, st,
     the layer below that fired) and their spikes (masks_in, alive_in; see _spike_masks). w (k k C_in x
     C_out, flat) rows in (kernel row, column, input channel) order. A window's spikes are added per step
     in the order torch sums it: by blocks of blk input channels, within a block by kernel row, column,
-    channel (blk >= C_in: one block). Output likewise (cells_out, slot_out, masks_out, alive_out);
+    channel (blk >= C_in: one block; blk < 0: blocks of -blk, each its own sum, see _window_currents). Output
+    likewise (cells_out, slot_out, masks_out, alive_out);
     returns their number."""
     n_out = 0
     for j in range(n_in):
@@ -342,7 +356,8 @@ def conv_layers(ex, ey, occ, tile_start, tiles, geom, half, size, s1, s2, s3, k1
 
 def window_currents(spikes: np.ndarray, weight: np.ndarray, stride: int, blk: int) -> np.ndarray:
     """A convolution of binary spikes (T, C_in, H, W) with weight (C_out, C_in, k, k), no bias, summed as the
-    event-driven path sums it (input-channel blocks of blk): currents (T, C_out, H', W') float32."""
+    event-driven path sums it (input-channel blocks of blk; blk < 0: each block its own sum, see _window_currents):
+    currents (T, C_out, H', W') float32."""
     steps, c_in, size, _ = spikes.shape
     c_out, k = weight.shape[0], weight.shape[2]
     out = (size - k) // stride + 1

@@ -28,8 +28,9 @@ class TrainConfigError(ValueError):
 
 class TrainBudget(Strict):
     """Settings every trainer has: epochs, segments per epoch and per step, Adam's rate, seed, the smallest usable
-    box (px), validation (every N steps, on M segments) and a time budget (minutes). Bad values raise
-    TrainConfigError naming the first bad field (numbers are not strict here: Python callers pass numpy ones)."""
+    box (px), validation (every N steps, on M segments; a tracking score every K steps) and a time budget
+    (minutes). Bad values raise TrainConfigError naming the first bad field (numbers are not strict here: Python
+    callers pass numpy ones)."""
 
     epochs: int = Field(3, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)
@@ -39,6 +40,7 @@ class TrainBudget(Strict):
     min_box_px: float = Field(8.0, ge=0)
     val_every: int = Field(50, ge=1)
     val_segments: int = Field(40, ge=0)
+    val_arscore_every: int | None = Field(None, ge=1)  # steps between validation tracking scores; None = off
     max_minutes: float | None = Field(None, gt=0)
 
     def __init__(self, **data: Any) -> None:
@@ -148,3 +150,45 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
         history["val"].append({**validate(), "step": step})
     history.update(steps=step, minutes=(time.monotonic() - start) / 60)
     return history
+
+
+class Validation:
+    """fit's `validate` for a trainer: `measure()` (figures of the fixed validation batch), the mean training loss
+    since the previous validation (train_loss_mean), and every cfg.val_arscore_every steps `score(model)` (a
+    tracking score on the validation sequences, e.g. {"arscore": ...}), each step scored at most once (fit
+    validates the last step twice when it falls on val_every)."""
+
+    def __init__(self, model: torch.nn.Module, cfg: TrainBudget, history: dict, measure: Callable[[], dict],
+                 score: Callable[[torch.nn.Module], dict] | None = None) -> None:
+        self.model, self.cfg, self.history, self.measure, self.score = model, cfg, history, measure, score
+        self.scored: dict[int, dict] = {}
+        self.since = 0  # the step of the previous validation
+
+    def _due(self, step: int) -> bool:
+        return self.score is not None and bool(self.cfg.val_arscore_every) and step % self.cfg.val_arscore_every == 0
+
+    def __call__(self) -> dict:
+        step = len(self.history["train_loss"])
+        m = self.measure()
+        recent = self.history["train_loss"][self.since:step]
+        m["train_loss_mean"] = float(np.mean(recent)) if recent else None
+        self.since = step
+        if self._due(step):
+            self.scored.setdefault(step, self.score(self.model))
+            m.update(self.scored[step])
+        return m
+
+    def score_last(self) -> None:
+        """After fit: the final validation entry gets the tracking score too, if the last step was not one of
+        val_arscore_every's (the curve then always ends with one)."""
+        if self.score is None or not self.cfg.val_arscore_every or not self.history["val"]:
+            return
+        if self.history["steps"] not in self.scored:
+            self.model.eval()
+            self.scored[self.history["steps"]] = self.score(self.model)
+            self.history["val"][-1].update(self.scored[self.history["steps"]])
+
+
+def score_note(m: dict) -> str:
+    """The tracking score of a validation entry for the progress line ("" if it has none)."""
+    return f" arscore {m['arscore']:.3f}" if "arscore" in m else ""

@@ -32,7 +32,8 @@ from sctn.loss import ErrorTime, LossKind, error_voltages, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
-from sctn.training.loop import TrainBudget, TrainConfigError, fit, held_out, spread  # noqa: F401  (TrainConfigError)
+from sctn.training.loop import (TrainBudget, TrainConfigError, Validation, fit,  # noqa: F401  (TrainConfigError)
+                                held_out, score_note, spread)
 
 NEARLY_SILENT = 0.1  # mean target V_max on validation positives below this: a nearly silent network
 MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment
@@ -55,7 +56,6 @@ class TrainConfig(TrainBudget):
     init: Init = "kaiming"
     fluctuation_xi: float = Field(2.0, gt=0, allow_inf_nan=False)  # theta over V's standard deviation at the start
     network: SerializeAsAny[NetworkConfig] = Field(default_factory=NetworkConfig)  # a TwinConfig keeps its fields
-    val_arscore_every: int | None = Field(None, ge=1)  # steps between validation ARscores (a caller's scorer); None = off
 
     @model_validator(mode="before")
     @classmethod
@@ -68,6 +68,11 @@ class TrainConfig(TrainBudget):
                     raise ValueError(f"calibrate contradicts init {data['init']!r}")
                 data["init"] = "calibrate"
         return data
+
+    def __init__(self, **data: Any) -> None:
+        super().__init__(**data)
+        if self.background_term and not self.network.background_neuron:  # the mirrored error would train nothing
+            raise TrainConfigError("background_term", "needs the background neuron (not with --no-background-neuron)")
 
     @property
     def calibrate(self) -> bool:
@@ -207,30 +212,14 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
 
         history: dict = {"train_loss": [], "val": [], "calibration": history_calibration, "init": cfg.init,
                          "validation": "files" if val_files else "held_out"}
-        scored: dict = {}  # step -> val_score's figures (at most once a step: fit validates the last step twice)
-        since = [0]  # the step of the previous validation
-
-        def validate() -> dict:
-            step = len(history["train_loss"])
-            m = evaluate(model, *val_batch, cfg)
-            recent = history["train_loss"][since[0]:step]
-            m["train_loss_mean"] = float(np.mean(recent)) if recent else None
-            since[0] = step
-            if val_score is not None and cfg.val_arscore_every and step % cfg.val_arscore_every == 0:
-                scored.setdefault(step, val_score(model))
-                m.update(scored[step])
-            return m
-
+        validate = Validation(model, cfg, history, lambda: evaluate(model, *val_batch, cfg), val_score)
         history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
                       lambda m: (f"val loss {m['loss']:.4f} acc {m['accuracy']:.3f} "
-                                 f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}"
-                                 + (f" arscore {m['arscore']:.3f}" if "arscore" in m else "")),
+                                 f"vmax pos {m['vmax_pos']:.3f} neg {m['vmax_neg']:.3f}" + score_note(m)),
                       history, progress, "train")
         if val_batch is not None:
+            validate.score_last()
             final = history["val"][-1]
-            if val_score is not None and cfg.val_arscore_every and history["steps"] not in scored:
-                model.eval()
-                final.update(val_score(model))
             # a network whose target output never rises above 0 cannot track; with eq. 5 and no bias nothing
             # revives it (no spike, no surrogate gradient), so say so rather than hand it on as trained
             history["silent"] = final["vmax_max"] <= 0.0

@@ -169,6 +169,53 @@ def test_validation_files_learning_curves_and_arscore_in_the_history(data, tmp_p
     assert isinstance(history["nearly_silent"], bool) and "target_vmax_pos" in history
 
 
+@pytest.mark.parametrize("model, extra, figures", [
+    ("sctn_ann", ["--channels", "2", "2", "2", "--fc", "4", "4"], {"loss", "accuracy", "vmax_pos"}),
+    ("siamfc", [], {"loss", "centre_error_px"}),
+])
+def test_every_model_takes_the_validation_flags_and_draws_a_curve(data, tmp_path, capsys, model, extra, figures):
+    """The twin and SiamFC validate on --val-data as SCTN does: every --val-every steps the validation figures and
+    the training loss since the last one, every --val-arscore-every steps and at the end the validation ARscore, in
+    the checkpoint's .json that learning_curves reads."""
+    from benchmarks.analysis.learning_curves import main as curves_main, read_curves
+
+    val = moving_square_file(tmp_path / "val.h5", width=64, height=48, size=12, duration_ms=40,
+                             velocity_px_s=(-80.0, 30.0), start=(40.0, 10.0), split="val", seed=3)
+    out = tmp_path / f"{model}.pt"
+    tiny = ["--epochs", "1", "--segments-per-epoch", "3", "--batch-segments", "1", "--threads", "1", "--quiet"]
+    assert main(["train", "--model", model, "--data", str(data), "-o", str(out), *tiny, *extra, "--val-data", str(val),
+                 "--val-every", "1", "--val-segments", "2", "--val-arscore-every", "2",
+                 "--val-arscore-segments", "3"]) == 0
+    capsys.readouterr()
+    meta = json.loads(out.with_suffix(".json").read_text())
+    history = meta["history"]
+    assert meta["model"] == model and meta["train_config"]["val_arscore_every"] == 2
+    assert history["validation"] == "files" and history["val_segments"] == 2 and history["steps"] == 3
+    assert history["train_segments"] == 6  # every usable training segment trains: none held out
+    assert [v["step"] for v in history["val"]] == [1, 2, 3, 3]
+    assert all(figures | {"train_loss_mean"} <= set(v) for v in history["val"])
+    with_score = [v["step"] for v in history["val"] if "arscore" in v]
+    assert with_score == [2, 3]  # every 2 steps, and the final entry (step 3) though 2 does not divide it
+    assert all(0.0 <= v["arscore"] <= 1.0 for v in history["val"] if "arscore" in v)
+    curve = read_curves(out.with_suffix(".json"))
+    assert curve["model"] == model and [s for s, _ in curve["arscore"]] == [2, 3]
+    assert curves_main([str(out.with_suffix(".json")), "-o", str(tmp_path / "c.png")]) == 0
+    assert f"{model}: mean curve" in capsys.readouterr().out
+
+
+def test_siamfc_without_validation_files_holds_out_every_tenth_segment(data, tmp_path, capsys):
+    out = tmp_path / "s.pt"
+    assert main(["train", "--model", "siamfc", "--data", str(data), "-o", str(out), "--epochs", "1",
+                 "--segments-per-epoch", "1", "--batch-segments", "1", "--threads", "1", "--quiet"]) == 0
+    capsys.readouterr()
+    history = json.loads(out.with_suffix(".json").read_text())["history"]
+    assert history["validation"] == "held_out" and history["train_segments"] == 5 and history["val_segments"] == 1
+    assert "arscore" not in history["val"][-1]
+    assert main(["train", "--model", "siamfc", "--data", str(data), "-o", str(out), "--val-arscore-every", "2",
+                 "--quiet"]) == 2
+    assert "--val-arscore-every needs --val-data" in capsys.readouterr().err
+
+
 def test_validation_flags_are_refused_before_training(data, tmp_path, capsys, no_training):
     out = tmp_path / "m.pt"
     assert main(["train", "--data", str(data), "-o", str(out), *TINY, "--val-data", str(data)]) == 2

@@ -215,6 +215,29 @@ def test_siamfc_tracker_moves_to_the_response_peak(tmp_path, monkeypatch):
     np.testing.assert_allclose(box[2:], s0.box[2:], rtol=1e-6)  # scale_lr 0: the size stays
 
 
+def test_siamfc_tracker_on_a_network_in_memory_tracks_as_from_its_checkpoint(tmp_path):
+    """SiamFCTracker.from_model (the validation score during training) tracks as the tracker loaded from the same
+    weights, and leaves the network unchanged."""
+    from benchmarks.trackers.siamfc.tracker import SiamFCTracker
+    from dvsot.dataset import Dataset
+
+    torch.manual_seed(3)
+    net = SiamFC().eval()
+    before = {k: v.clone() for k, v in net.state_dict().items()}
+    path = save_checkpoint(tmp_path / "s.pt", net, {}, kind="siamfc")
+    test_file = moving_square_file(tmp_path / "t.h5", duration_ms=40, split="test")
+    boxes = []
+    for tracker in (SiamFCTracker(checkpoint=str(path)), SiamFCTracker.from_model(net)):
+        with Dataset(test_file) as ds:
+            s0 = ds.segment(0)
+            tracker.init(s0, s0.box, ds.width, ds.height)
+            boxes.append([tracker.update(ds.segment(i)) for i in (1, 2, 3)])
+    np.testing.assert_array_equal(np.array(boxes[0]), np.array(boxes[1]))
+    assert all(torch.equal(v, before[k]) for k, v in net.state_dict().items())
+    with pytest.raises(ValueError, match="no checkpoint"):
+        SiamFCTracker.from_model(net, checkpoint=str(path))
+
+
 def test_count_macs_counts_a_linear_layer():
     layer = torch.nn.Linear(7, 3)
     assert count_macs(layer, torch.zeros(5, 7))["mac_ops"] == 5 * 7 * 3

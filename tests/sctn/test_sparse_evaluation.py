@@ -12,8 +12,8 @@ from sctn.encoding import encode_boxes
 from sctn.energy import LAYER_NAMES, layer_ops
 from sctn.network import SCTN, NetworkConfig
 from sctn.samples import propose
-from sctn.sparse.evaluate import (candidate_record, candidate_voltages, dense_candidate_voltages, exact_blocker,
-                              per_candidate_voltages, summation_blocks)
+from sctn.sparse.evaluate import (_conv_block, candidate_record, candidate_voltages, dense_candidate_voltages,
+                              exact_blocker, per_candidate_voltages, summation_blocks)
 from sctn.sparse.kernels import window_currents
 
 torch.set_num_threads(1)
@@ -91,11 +91,39 @@ def _check_equal(net: SCTN, events: EventBatch, boxes: np.ndarray, t0_us: int = 
 
 
 @pytest.mark.parametrize("cfg", [{"tail_steps": 0}, {"tail_steps": 2, "channels": (4, 8, 4), "fc": (16, 8)},
-                                 {"tail_steps": 0, "channels": (8, 12, 16), "fc": (32, 16)}])
+                                 {"tail_steps": 0, "channels": (8, 12, 16), "fc": (32, 16)},
+                                 {"tail_steps": 0, "background_neuron": False}])
 def test_sparse_evaluation_equals_the_dense_path_in_every_layer(cfg):
     net = _net(1, **cfg)
     counts = _check_equal(net, _events(2), _boxes(3))
     assert all(counts[name] > 0 for name in LAYER_NAMES), counts  # every layer takes part
+
+
+@pytest.mark.parametrize("row", ["widths_x2", "widths_x4"])
+def test_sparse_evaluation_equals_the_dense_path_for_the_wider_ablation_rows(row):
+    """The widths rows' networks (32 and 64 channels: more input channels than one summation block, which oneDNN sums
+    block by block on its own on AVX-512) are evaluated event-driven, equal to the dense path in every layer."""
+    from benchmarks.experiments.ablation import ROWS
+
+    net = _net(5, **ROWS[row][1])
+    assert exact_blocker(net) is None
+    counts = _check_equal(net, _events(6, n=1500), _boxes(7, n=12))
+    assert all(counts[name] > 0 for name in LAYER_NAMES[:-1]), counts
+    assert per_candidate_voltages(net, _events(6, n=300), 0, _boxes(7, n=4))[1] == "sparse"
+
+
+def test_block_by_block_sums_are_found_and_reproduced():
+    """A convolution whose torch sums are each block's own sum added in order (blk < 0) is reproduced as found."""
+    torch.manual_seed(3)
+    x = (torch.rand(10, 32, 12, 12) < 0.3).float()
+    w = torch.randn(24, 32, 3, 3)
+    mine = {b: window_currents(x.numpy(), w.numpy(), 1, b) for b in (16, -16, 8, -8)}
+    np.testing.assert_allclose(mine[16], mine[-16], rtol=1e-5, atol=1e-5)  # the same sums, another order
+    blk = _conv_block(32, 24, 3, 1, 12, False, 640, torch.get_num_threads())
+    assert blk is not None
+    with torch.no_grad():
+        ref = torch.nn.functional.conv2d(x, w).numpy()
+    assert np.array_equal(window_currents(x.numpy(), w.numpy(), 1, blk), ref)
 
 
 def test_no_events_no_boxes_and_an_offset_segment():
@@ -216,6 +244,10 @@ def test_models_it_cannot_reproduce_are_refused_and_run_densely():
     overlapping = _bias_free(SCTN(NetworkConfig(kernels=(5, 3, 3))))
     assert "kernel must equal its stride" in exact_blocker(overlapping)
     assert "31 time steps" in exact_blocker(_bias_free(SCTN(NetworkConfig(steps=32))))  # a pixel's bits: 2 per step
+    from benchmarks.experiments.ablation import MDNET_WIDTHS
+
+    wide = _bias_free(SCTN(NetworkConfig(channels=MDNET_WIDTHS["channels"], fc=(4, 4))))  # 96 .. 512 channels
+    assert "more than 64 channels" in exact_blocker(wide)
 
 
 def test_tracker_tracks_the_same_boxes_as_with_the_dense_path(tmp_path, monkeypatch):

@@ -77,10 +77,25 @@ class SiamFCTracker(Tracker):
     def __init__(self, **options) -> None:
         from benchmarks.trackers.siamfc.model import load_siamfc
 
-        self.opts = SiamFCOptions(**options)
+        opts = SiamFCOptions(**options)
+        self._start(load_siamfc(opts.checkpoint)[0], opts)
+
+    @classmethod
+    def from_model(cls, model: SiamFC, **options) -> "SiamFCTracker":
+        """The tracker on a network in memory (one being trained, for its validation score); `options` as
+        SiamFCOptions less the checkpoint. The network is read, never changed."""
+        opts = SiamFCOptions(**options)
+        if opts.checkpoint is not None:
+            raise ValueError("siamfc: a tracker on a given network takes no checkpoint")
+        self = cls.__new__(cls)
+        self._start(model, opts)
+        return self
+
+    def _start(self, model: SiamFC, opts: SiamFCOptions) -> None:
+        self.opts = opts
         if self.opts.scale_num % 2 == 0:
             raise ValueError(f"scale_num must be odd (one scale at 1.0), got {self.opts.scale_num}")
-        self.model: SiamFC = load_siamfc(self.opts.checkpoint)[0]
+        self.model: SiamFC = model
         n = self.opts.scale_num
         self.scales = self.opts.scale_step ** (np.arange(n) - (n - 1) / 2)
         self.window = hann_window(self.model.cfg.response_size() * self.opts.response_up)

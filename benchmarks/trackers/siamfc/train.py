@@ -1,7 +1,10 @@
 """Training SiamFC from scratch on ATSLTD frames (paper eq. 11) of the training split: logistic loss on the response.
 
 Data: the segments with a ground-truth box of at least `min_box_px` a side (sctn.training.snn.usable_segments),
-every 10th held out for validation, as SCTN's training does. A training pair is an exemplar from one
+every 10th held out for validation, as SCTN's training does; with validation files (`val_files`) those are the
+validation pairs' sequences instead and every usable training segment trains. A tracking score of the network
+(`val_score`, e.g. the validation sequences' ARscore) joins the validation every `val_arscore_every` steps and at
+the end, as in SCTN's training (sctn.training.loop.Validation). A training pair is an exemplar from one
 segment and a search region from another of the same sequence at most `max_gap` segments away (SiamFC
 draws frames up to 100 apart); the search crop is centred on the target, moved by up to `shift_px`
 crop px and scaled by up to 1 +- `stretch` (augmentation, as in SiamFC's training), so the label's
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -24,7 +28,7 @@ from benchmarks.evaluation.atsltd import atsltd_frame
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
 from dvsot.limits import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget, fit, held_out, spread
+from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
 
 
 class SiamFCTrainConfig(TrainBudget):
@@ -134,19 +138,35 @@ def evaluate(model: SiamFC, batch: tuple[torch.Tensor, ...]) -> dict:
     return {"loss": loss, "centre_error_px": float(err.mean())}
 
 
-def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True) -> tuple[SiamFC, dict]:
-    """Train a new SiamFC on the given dataset files; returns the model and a history of metrics."""
+def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True, val_files: list[Path] | None = None,
+          val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[SiamFC, dict]:
+    """Train a new SiamFC on the given dataset files; returns the model and a history of metrics.
+
+    Validation (every cfg.val_every steps and at the end): cfg.val_segments search segments spread over
+    `val_files` when given (each paired with an exemplar of its own sequence; every usable training segment then
+    trains), else over every 10th usable segment of the training files (held out). Each entry of history["val"]
+    has the loss, the mean centre error (px) and the mean training loss since the previous entry; `val_score(model)`
+    is added every cfg.val_arscore_every steps and at the end."""
     rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
     seqs = [load_frames(f, cfg.min_box_px) for f in files]
+    n_train = len(seqs)
+    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
     train_items, val_items, pools = [], [], []
     for s, fr in enumerate(seqs):
-        fit_ks, val_ks = held_out(np.arange(len(fr.segments)))
+        everything = np.arange(len(fr.segments))
+        if s >= n_train:  # a validation sequence: its exemplars are its own segments
+            pools.append(everything)
+            val_items += [(s, int(k)) for k in everything]
+            continue
+        fit_ks, val_ks = (everything, everything[:0]) if val_files else held_out(everything)
         pools.append(fit_ks)  # exemplars come from training segments only
         val_items += [(s, int(k)) for k in val_ks]
         train_items += [(s, int(k)) for k in fit_ks]
     if not train_items:
         raise ValueError("no training segments with a ground-truth box")
+    if val_files and not val_items:
+        raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
     model = SiamFC(cfg.network)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     val_rng = np.random.default_rng(cfg.seed + 1)
@@ -161,9 +181,12 @@ def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True) -> t
         z, x, labels, weights = make_batch(items, seqs, rng, cfg)
         return logistic_loss(model(z, x), labels, weights), {}
 
-    history = fit(model, opt, train_items, cfg, rng, step_loss,
-                  (lambda: evaluate(model, val_batch)) if val_batch is not None else None,
-                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px",
-                  {"train_loss": [], "val": []}, progress, "train siamfc")
+    history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
+    validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
+    history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
+                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px" + score_note(m),
+                  history, progress, "train siamfc")
+    if val_batch is not None:
+        validate.score_last()
     history.update(train_segments=len(train_items), val_segments=len(val_pick))
     return model, history
