@@ -10,6 +10,13 @@ events. With any stage on, a SensorModel wraps the simulator, in signal order:
    once a frame, state += eps * (input - state) with eps = min(1, inten01 * dt / tau), tau = 1 / (2 pi
    f3dB) and inten01 = (I + dark) / (1 + dark), `dark_intensity` being the dark current's equivalent
    intensity: dim pixels lag. Order 2 cascades two such stages.
+   Photoreceptor noise (`photoreceptor_noise_hz` > 0): Gaussian noise added to that output, low-passed
+   at `lowpass_cutoff_hz` whatever the intensity (an Ornstein-Uhlenbeck process, updated exactly for any
+   frame interval, started in its stationary state with the reference at its mean, the noise-free signal, as
+   v2e's starts), its RMS set so that it alone gives that many noise
+   events per pixel per second, ON and OFF together (`photoreceptor_noise_rms`: Graca and Delbruck's
+   rate fit as v2e's `--photoreceptor_noise` uses it). Its events are level crossings like the signal's:
+   they move the reference and cannot be told from signal, so they are flagged signal.
 3. The level-crossing kernel on the filtered log signal, with today's thresholds, mismatch and
    refractory period.
 4. Noise, flagged signal = False with its kind (event_batch.NOISE_KINDS); none moves the reference:
@@ -82,6 +89,31 @@ def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.
     inten = np.maximum(np.exp(L) - log_eps, 0.0)
     knee = linlog_intensity + log_eps
     return np.where(inten < linlog_intensity, np.log(knee) + (inten - linlog_intensity) / knee, L)
+
+
+def photoreceptor_noise_rms(rate_hz: float, cutoff_hz: float, cp: float, cn: float, sigma_cp: float = 0.0,
+                            sigma_cn: float = 0.0) -> float:
+    """RMS (log intensity) of Gaussian photoreceptor noise low-passed at cutoff_hz (Hz) that gives rate_hz noise
+    events per pixel per second, ON and OFF together, with thresholds C+ ~ N(cp, sigma_cp), C- ~ N(cn, sigma_cn).
+
+    Graca and Delbruck's fit (dvsot.events.presets.PHOTORECEPTOR_NOISE_FIT) gives threshold / RMS for the ON rate
+    per Hz of bandwidth; the threshold is the mean of the smaller of a pixel's two, as v2e takes it (in closed
+    form here: the mean of the minimum of two Gaussians).
+    """
+    from dvsot.events.presets import PHOTORECEPTOR_NOISE_FIT
+
+    x = math.log10(rate_hz / 2.0 / cutoff_hz)
+    y = 0.0
+    for c in PHOTORECEPTOR_NOISE_FIT:  # Horner: highest power first
+        y = y * x + c
+    spread = math.hypot(sigma_cp, sigma_cn)
+    if spread > 0:
+        z = (cn - cp) / spread
+        cdf = 0.5 * (1.0 + math.erf(z / math.sqrt(2.0)))
+        threshold = cp * cdf + cn * (1.0 - cdf) - spread * math.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+    else:
+        threshold = min(cp, cn)
+    return threshold / 10.0 ** y
 
 
 @numba.njit(cache=True, nogil=True)
@@ -184,9 +216,16 @@ class SensorModel:
     def __init__(self, sim: "EventSimulator", seed: int) -> None:
         self.sim, self.params = sim, sim.params
         p, n = self.params, sim.width * sim.height
-        rng_leak, rng_shot, rng_hot, rng_time = (np.random.default_rng(s) for s in
-                                                 np.random.SeedSequence(int(seed)).spawn(6)[2:])
-        self._rng_shot, self._rng_time = rng_shot, rng_time
+        # children 0 and 1 are the simulator's; a stage added later takes the next child, leaving the others' draws
+        rng_leak, rng_shot, rng_hot, rng_time, rng_photo = (np.random.default_rng(s) for s in
+                                                            np.random.SeedSequence(int(seed)).spawn(7)[2:])
+        self._rng_shot, self._rng_time, self._rng_photo = rng_shot, rng_time, rng_photo
+        self._photo_rms = 0.0
+        if p.photoreceptor_noise_hz > 0:
+            self._photo_rms = photoreceptor_noise_rms(p.photoreceptor_noise_hz, p.lowpass_cutoff_hz, p.cp, p.cn,
+                                                      p.sigma_cp, p.sigma_cn)
+            self._photo = np.empty(n)  # the noise now, log intensity
+            self._photo_draw = np.empty(n, np.float32)
         self._lp1 = np.empty(n) if p.lowpass_order else np.empty(0)
         self._lp2 = np.empty(n) if p.lowpass_order == 2 else np.empty(0)
         self._raw = np.empty(n)
@@ -255,6 +294,7 @@ class SensorModel:
             else:
                 out = self._outs[self._frames % 2]
                 coded_front_end(codes, plog, inten01, out, self._lp1, self._lp2, first, p.lowpass_order, dt_over_tau)
+                out = self._photoreceptor_noise(out, first, t_us)
                 signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
         else:
             raw = self._log(frame, is_log)
@@ -262,7 +302,8 @@ class SensorModel:
             out = self._outs[self._frames % 2]
             front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
                       dt_over_tau, p.dark_intensity)
-            signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+            signal = sim.step(self._photoreceptor_noise(out, first, t_us).reshape(sim.height, sim.width), t_us,
+                              is_log=True, copy=False)
         self._frames += 1
         if first:
             self._t_prev = t_us
@@ -273,6 +314,25 @@ class SensorModel:
         t0, self._t_prev = self._t_prev, t_us
         batch = self._merge(signal, self._noise(t0, t_us))
         return self._deliver(batch, t_us)
+
+    def _photoreceptor_noise(self, out: np.ndarray, first: bool, t_us: int) -> np.ndarray:
+        """out (the low-pass output, log intensity) plus the photoreceptor noise at t_us, in place (out as is if off).
+
+        The noise is an Ornstein-Uhlenbeck process of stationary RMS `_photo_rms` and time constant
+        1 / (2 pi lowpass_cutoff_hz): n <- a n + sqrt(1 - a^2) rms z with a = exp(-dt / tau), exact for any dt.
+        """
+        if not self._photo_rms:
+            return out
+        z = self._rng_photo.standard_normal(out.size, np.float32, out=self._photo_draw)
+        if first:  # the noise in its stationary state; the reference at the noise-free signal, the noise's mean
+            np.multiply(z, self._photo_rms, out=self._photo)
+            return out
+        else:
+            a = math.exp(-(t_us - self._t_prev) * 1e-6 * 2 * math.pi * self.params.lowpass_cutoff_hz)
+            self._photo *= a
+            self._photo += math.sqrt(1.0 - a * a) * self._photo_rms * z
+        out += self._photo
+        return out
 
     def _check_hot(self, t0: int, t1: int) -> None:
         """UserError if the hot pixels or the brightest shot noise would draw too many events in (t0, t1] (us)."""

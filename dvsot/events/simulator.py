@@ -92,6 +92,9 @@ class EventParams(BaseModel):
                                     "photoreceptor is linear; 0 = log everywhere")
     lowpass_order: Literal[0, 1, 2] = Field(0, description="photoreceptor low-pass: 0 off, 1 or 2 stages")
     lowpass_cutoff_hz: float = Field(0.0, ge=0, description="low-pass 3 dB cutoff at full-scale intensity, Hz")
+    photoreceptor_noise_hz: float = Field(0.0, ge=0, description="noise events per pixel per second (ON and OFF) "
+                                          "wanted from Gaussian noise on the log photoreceptor output, low-passed "
+                                          "at lowpass_cutoff_hz; 0 = off")
     dark_intensity: float = Field(20 / 255, gt=0, le=1, description="dark current as an intensity (1 = full scale): "
                                   "the low-pass's bandwidth and the shot noise scale with (I + dark) / (1 + dark)")
     shot_noise_bright_factor: float = Field(1.0, ge=0, le=100, description="shot-noise rate at full-scale intensity "
@@ -120,6 +123,19 @@ class EventParams(BaseModel):
         if self.lowpass_order and self.lowpass_cutoff_hz <= 0:
             raise ValueError(f"lowpass_cutoff_hz {self.lowpass_cutoff_hz:g} Hz: must be > 0 Hz with lowpass_order "
                              f"{self.lowpass_order}")
+        if self.photoreceptor_noise_hz > 0:
+            from dvsot.events.presets import PHOTORECEPTOR_NOISE_FIT_RANGE
+
+            if not self.lowpass_order:
+                raise ValueError(f"photoreceptor_noise_hz {self.photoreceptor_noise_hz:g} Hz: needs lowpass_order 1 "
+                                 "or 2 (the noise's bandwidth is lowpass_cutoff_hz); lowpass_order is 0")
+            lo, hi = (2 * r * self.lowpass_cutoff_hz for r in PHOTORECEPTOR_NOISE_FIT_RANGE)
+            if not lo <= self.photoreceptor_noise_hz <= hi:
+                raise ValueError(f"photoreceptor_noise_hz {self.photoreceptor_noise_hz:g} Hz: must be 0 (off) or "
+                                 f"within {lo:g}..{hi:g} events per pixel per second with lowpass_cutoff_hz "
+                                 f"{self.lowpass_cutoff_hz:g} Hz ({2 * PHOTORECEPTOR_NOISE_FIT_RANGE[0]:g} to "
+                                 f"{2 * PHOTORECEPTOR_NOISE_FIT_RANGE[1]:g} times the cutoff: the range of the "
+                                 "rate's fit)")
         if 0 < self.readout_limit_hz < 1:
             raise ValueError(f"readout_limit_hz {self.readout_limit_hz:g} events/s: must be 0 (unlimited) or >= 1")
         return self
