@@ -71,13 +71,33 @@ def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_ev
                 bound += int(k_hi - k_lo) + 1
     if not finite:
         return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)
+    return True, *candidate_events(scratch[:n_cand], bound, L1, last, base, off, ref, cp, cn, last_event,
+                                   refractory_us, t0, t1, width)
+
+
+@numba.njit(cache=True, nogil=True)
+def candidate_events(cand, bound, L1, last, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, width):
+    """interval_events' second pass: the crossings of the pixels cand (pixel order) that a first pass found, bound
+    the number of their levels crossed; x, y, t (us), p in time order, the references moved (arguments as there)."""
     code = np.empty(bound, np.int64)  # pixel * 2 + polarity
     trel = np.empty(bound, np.int64)  # whole microseconds after t0
     ne = 0
-    for j in range(n_cand):
-        i = scratch[j]
+    for j in range(cand.shape[0]):
+        i = cand[j]
         ne = _emit(i, L1[i], last[i], base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne)
-    return True, *_time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def may_fire(i, li, last, base, off, ref, gate_on, gate_off, cp, cn):
+    """The number of levels pixel i crosses from last[i] to li (0: none): interval_events' first-pass test, for the
+    compiled loops that make li themselves (dvsot.events.sensor's front ends)."""
+    d = li - ref[i]
+    if (d >= gate_on[i]) | (d <= -gate_off[i]):
+        _, _, _, _, k_lo, k_hi = _levels(li, last[i], base[i], off[i], cp[i], cn[i])
+        if k_hi >= k_lo:
+            return int(k_hi - k_lo) + 1
+    return 0
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -47,11 +47,39 @@ import numpy as np
 
 from dvsot.errors import UserError
 from dvsot.events.batch import NOISE_KINDS, EventBatch
+from dvsot.events.kernel import may_fire
 
 if TYPE_CHECKING:
     from dvsot.events import EventParams, EventSimulator
 
 SHOT, LEAK, HOT = (NOISE_KINDS.index(k) for k in ("shot", "leak", "hot"))
+_NONE = np.empty(0)  # no photoreceptor noise
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _front_end_pixel(i, v, lp1, lp2, first, knee_log, knee_slope, linlog_intensity, log_eps, order, dt_over_tau, dark):
+    """One pixel of front_end: its photoreceptor and low-pass output for log intensity v (state in lp1, lp2)."""
+    inten = max(math.exp(v) - log_eps, 0.0)
+    if inten < linlog_intensity:  # linear below the knee, tangent to the log at it
+        v = knee_log + (inten - linlog_intensity) * knee_slope
+    if order > 0:
+        if first:
+            lp1[i] = v
+            if order == 2:
+                lp2[i] = v
+        else:
+            e = min(1.0, (inten + dark) / (1.0 + dark) * dt_over_tau)
+            lp1[i] += e * (v - lp1[i])
+            if order == 2:
+                lp2[i] += e * (lp1[i] - lp2[i])
+        v = lp1[i] if order == 1 else lp2[i]
+    return v
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _knee(linlog_intensity, log_eps):
+    """(log, slope) of the photoreceptor at its lin-log knee."""
+    return (math.log(linlog_intensity + log_eps) if linlog_intensity > 0.0 else 0.0), 1.0 / (linlog_intensity + log_eps)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -61,25 +89,36 @@ def front_end(L, out, lp1, lp2, first, linlog_intensity, log_eps, order, dt_over
     first: the state starts at the input (steady state). dt_over_tau: the frame interval over the time
     constant at full-scale intensity; the step of a pixel is min(1, (I + dark) / (1 + dark) * dt_over_tau).
     """
-    knee_log = math.log(linlog_intensity + log_eps) if linlog_intensity > 0.0 else 0.0
-    knee_slope = 1.0 / (linlog_intensity + log_eps)
+    knee_log, knee_slope = _knee(linlog_intensity, log_eps)
     for i in range(L.shape[0]):
-        v = L[i]
-        inten = max(math.exp(v) - log_eps, 0.0)
-        if inten < linlog_intensity:  # linear below the knee, tangent to the log at it
-            v = knee_log + (inten - linlog_intensity) * knee_slope
-        if order > 0:
-            if first:
-                lp1[i] = v
-                if order == 2:
-                    lp2[i] = v
-            else:
-                e = min(1.0, (inten + dark) / (1.0 + dark) * dt_over_tau)
-                lp1[i] += e * (v - lp1[i])
-                if order == 2:
-                    lp2[i] += e * (lp1[i] - lp2[i])
-            v = lp1[i] if order == 1 else lp2[i]
+        out[i] = _front_end_pixel(i, L[i], lp1, lp2, first, knee_log, knee_slope, linlog_intensity, log_eps, order,
+                                  dt_over_tau, dark)
+
+
+@numba.njit(cache=True, nogil=True)
+def front_end_pass(L, out, lp1, lp2, linlog_intensity, log_eps, order, dt_over_tau, dark, photo, last, base, off, ref,
+                   gate_on, gate_off, cp, cn, scratch):
+    """front_end after the first frame, plus photo (the photoreceptor noise; empty: none), fused with the level-crossing
+    kernel's first pass (kernel.may_fire, on the simulator's state): out, the pixels that may fire in scratch[:n];
+    (finite, n, levels crossed in all). One pass over the pixels instead of two."""
+    knee_log, knee_slope = _knee(linlog_intensity, log_eps)
+    noisy = photo.shape[0] > 0
+    finite = True
+    n = 0
+    bound = 0
+    for i in range(L.shape[0]):
+        v = _front_end_pixel(i, L[i], lp1, lp2, False, knee_log, knee_slope, linlog_intensity, log_eps, order,
+                             dt_over_tau, dark)
+        if noisy:
+            v = v + photo[i]
         out[i] = v
+        finite &= abs(v) < np.inf  # False for NaN too
+        k = may_fire(i, v, last, base, off, ref, gate_on, gate_off, cp, cn)
+        if k:
+            scratch[n] = i
+            n += 1
+            bound += k
+    return finite, n, bound
 
 
 def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.ndarray:
@@ -116,23 +155,49 @@ def photoreceptor_noise_rms(rate_hz: float, cutoff_hz: float, cp: float, cn: flo
     return threshold / 10.0 ** y
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _coded_pixel(i, c, plog, inten01, lp1, lp2, first, order, dt_over_tau):
+    """One pixel of coded_front_end: the low-pass output for code c (state in lp1, lp2)."""
+    v = plog[c]
+    if first:
+        lp1[i] = v
+        if order == 2:
+            lp2[i] = v
+    else:
+        e = min(1.0, inten01[c] * dt_over_tau)
+        lp1[i] += e * (v - lp1[i])
+        if order == 2:
+            lp2[i] += e * (lp1[i] - lp2[i])
+    return lp1[i] if order == 1 else lp2[i]
+
+
 @numba.njit(cache=True, nogil=True)
 def coded_front_end(codes, plog, inten01, out, lp1, lp2, first, order, dt_over_tau):
     """front_end for a frame of integer codes: plog[c] the photoreceptor's output and inten01[c] the relative
     intensity of code c (tables made once per code table), the low-pass as front_end's."""
     for i in range(codes.shape[0]):
-        c = codes[i]
-        v = plog[c]
-        if first:
-            lp1[i] = v
-            if order == 2:
-                lp2[i] = v
-        else:
-            e = min(1.0, inten01[c] * dt_over_tau)
-            lp1[i] += e * (v - lp1[i])
-            if order == 2:
-                lp2[i] += e * (lp1[i] - lp2[i])
-        out[i] = lp1[i] if order == 1 else lp2[i]
+        out[i] = _coded_pixel(i, codes[i], plog, inten01, lp1, lp2, first, order, dt_over_tau)
+
+
+@numba.njit(cache=True, nogil=True)
+def coded_front_end_pass(codes, plog, inten01, out, lp1, lp2, order, dt_over_tau, photo, last, base, off, ref,
+                         gate_on, gate_off, cp, cn, scratch):
+    """coded_front_end after the first frame, plus photo, fused with the kernel's first pass as front_end_pass is:
+    (n, levels crossed in all); the codes' tables are finite, so is out."""
+    noisy = photo.shape[0] > 0
+    n = 0
+    bound = 0
+    for i in range(codes.shape[0]):
+        v = _coded_pixel(i, codes[i], plog, inten01, lp1, lp2, False, order, dt_over_tau)
+        if noisy:
+            v = v + photo[i]
+        out[i] = v
+        k = may_fire(i, v, last, base, off, ref, gate_on, gate_off, cp, cn)
+        if k:
+            scratch[n] = i
+            n += 1
+            bound += k
+    return n, bound
 
 
 @numba.njit(cache=True, nogil=True)
@@ -285,25 +350,43 @@ class SensorModel:
         dt_over_tau = 0.0 if first else (t_us - self._t_prev) * 1e-6 * 2 * math.pi * p.lowpass_cutoff_hz
         from dvsot.events import CodedFrame
 
+        # after the first frame, with fixed thresholds: the front end and the kernel's first pass in one loop
+        fused = not first and not sim._redraws()
+        if fused:
+            sim._interval(t_us)  # the simulator's own checks, before any state changes
+        photo = self._photoreceptor_noise(first, t_us)
         if isinstance(frame, CodedFrame):  # by code tables: no log or exp per pixel
             codes = sim._codes(frame)
             plog, inten01, inten = self._code_tables(frame.table)
             self._inten_now = (codes, inten)
             if p.lowpass_order == 0:  # the photoreceptor alone is another code table: the simulator's coded path
                 signal = sim.step(CodedFrame(codes.reshape(sim.height, sim.width), plog), t_us)
+            elif fused:
+                out = self._outs[self._frames % 2]
+                n, bound = coded_front_end_pass(codes, plog, inten01, out, self._lp1, self._lp2, p.lowpass_order,
+                                                dt_over_tau, photo, *self._pass_state())
+                signal = sim._step_candidates(out, n, bound, t_us)
             else:
                 out = self._outs[self._frames % 2]
                 coded_front_end(codes, plog, inten01, out, self._lp1, self._lp2, first, p.lowpass_order, dt_over_tau)
-                out = self._photoreceptor_noise(out, first, t_us)
-                signal = sim.step(out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
+                signal = sim.step(np.add(out, photo, out=out).reshape(sim.height, sim.width) if photo.size else
+                                  out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
         else:
             raw = self._log(frame, is_log)
             self._inten_now = (raw, None)
             out = self._outs[self._frames % 2]
-            front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
-                      dt_over_tau, p.dark_intensity)
-            signal = sim.step(self._photoreceptor_noise(out, first, t_us).reshape(sim.height, sim.width), t_us,
-                              is_log=True, copy=False)
+            if fused:
+                finite, n, bound = front_end_pass(raw, out, self._lp1, self._lp2, p.linlog_intensity, p.log_eps,
+                                                  p.lowpass_order, dt_over_tau, p.dark_intensity, photo,
+                                                  *self._pass_state())
+                if not finite:
+                    raise UserError("frame contains NaN or infinite values")
+                signal = sim._step_candidates(out, n, bound, t_us)
+            else:
+                front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
+                          dt_over_tau, p.dark_intensity)
+                signal = sim.step(np.add(out, photo, out=out).reshape(sim.height, sim.width) if photo.size else
+                                  out.reshape(sim.height, sim.width), t_us, is_log=True, copy=False)
         self._frames += 1
         if first:
             self._t_prev = t_us
@@ -315,24 +398,29 @@ class SensorModel:
         batch = self._merge(signal, self._noise(t0, t_us))
         return self._deliver(batch, t_us)
 
-    def _photoreceptor_noise(self, out: np.ndarray, first: bool, t_us: int) -> np.ndarray:
-        """out (the low-pass output, log intensity) plus the photoreceptor noise at t_us, in place (out as is if off).
+    def _photoreceptor_noise(self, first: bool, t_us: int) -> np.ndarray:
+        """The photoreceptor noise to add to the low-pass output at t_us (log intensity, one per pixel); empty if off
+        and at the first frame.
 
         The noise is an Ornstein-Uhlenbeck process of stationary RMS `_photo_rms` and time constant
         1 / (2 pi lowpass_cutoff_hz): n <- a n + sqrt(1 - a^2) rms z with a = exp(-dt / tau), exact for any dt.
         """
         if not self._photo_rms:
-            return out
-        z = self._rng_photo.standard_normal(out.size, np.float32, out=self._photo_draw)
+            return _NONE
+        z = self._rng_photo.standard_normal(self._photo.size, np.float32, out=self._photo_draw)
         if first:  # the noise in its stationary state; the reference at the noise-free signal, the noise's mean
             np.multiply(z, self._photo_rms, out=self._photo)
-            return out
-        else:
-            a = math.exp(-(t_us - self._t_prev) * 1e-6 * 2 * math.pi * self.params.lowpass_cutoff_hz)
-            self._photo *= a
-            self._photo += math.sqrt(1.0 - a * a) * self._photo_rms * z
-        out += self._photo
-        return out
+            return _NONE
+        a = math.exp(-(t_us - self._t_prev) * 1e-6 * 2 * math.pi * self.params.lowpass_cutoff_hz)
+        self._photo *= a
+        self._photo += math.sqrt(1.0 - a * a) * self._photo_rms * z
+        return self._photo
+
+    def _pass_state(self) -> tuple:
+        """The simulator's state the fused first passes read: last, base, off, ref, gates, thresholds, scratch."""
+        sim = self.sim
+        return (sim._log_last(), sim._base, sim._off, sim._ref, sim._gate_on, sim._gate_off, sim._cp_px, sim._cn_px,
+                sim._scratch)
 
     def _check_hot(self, t0: int, t1: int) -> None:
         """UserError if the hot pixels or the brightest shot noise would draw too many events in (t0, t1] (us)."""

@@ -318,6 +318,25 @@ class EventSimulator:
         self._t_prev = t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
 
+    def _step_candidates(self, L1: np.ndarray, n_cand: int, bound: int, t_us: int) -> EventBatch:
+        """step() for a flat float64 log frame L1 (kept, not copied) whose first pass the caller has run: the pixels
+        that may fire in self._scratch[:n_cand], crossing `bound` levels in all (see kernel.may_fire).
+
+        For the sensor model's front ends, which make L1 and test each pixel in one loop; only after the first
+        frame, with fixed thresholds, and with the interval checked (`_interval`) before the caller's pass.
+        """
+        from dvsot.events.kernel import candidate_events
+
+        t0, t1 = self._t_prev, int(t_us)
+        self._log_last()
+        x, y, t, pol = candidate_events(self._scratch[:n_cand], bound, L1, self._last, self._base, self._off,
+                                        self._ref, self._cp_px, self._cn_px, self._last_event,
+                                        float(self.params.refractory_us), t0, t1, self.width)
+        self._bounds_for = None  # references moved outside the kernels that keep bounds
+        self._keep_last(L1)
+        self._t_prev = t1
+        return EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
+
     def _redraws(self) -> bool:
         """True if the thresholds are drawn anew for every interval (then only the float kernel runs)."""
         p = self.params
