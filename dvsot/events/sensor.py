@@ -229,6 +229,66 @@ def readout(t_in, period_us, fifo, state):
     return keep, t_out, dropped
 
 
+# below this many keys stable_order calls a merge sort: a radix pass costs a 2^16-entry histogram
+RADIX_MIN_KEYS = 4096
+
+
+@numba.njit(cache=True, nogil=True)
+def stable_order(key):
+    """np.argsort(key, kind="stable") of int64 keys: a least-significant-digit radix sort, 16 bits a pass, over the
+    keys' range (the stable order is unique, whichever stable sort finds it)."""
+    n = key.shape[0]
+    if n < RADIX_MIN_KEYS:
+        return np.argsort(key, kind="mergesort")
+    lo = key.min()
+    span = key.max() - lo
+    order = np.arange(n)
+    rel = key - lo
+    rel_out = np.empty(n, np.int64)
+    order_out = np.empty(n, np.int64)
+    start = np.empty(65537, np.int64)
+    shift = 0
+    while True:
+        start[:] = 0
+        for j in range(n):
+            start[((rel[j] >> shift) & 0xFFFF) + 1] += 1
+        for b in range(1, 65537):
+            start[b] += start[b - 1]
+        for j in range(n):
+            d = (rel[j] >> shift) & 0xFFFF
+            k = start[d]
+            start[d] = k + 1
+            rel_out[k] = rel[j]
+            order_out[k] = order[j]
+        rel, rel_out = rel_out, rel
+        order, order_out = order_out, order
+        shift += 16
+        if (span >> shift) == 0:
+            return order
+
+
+@numba.njit(cache=True, nogil=True)
+def delayed(t, x, y, width, n_pix, n_held, z, latency_us, jitter_us, ordered):
+    """The latency stage's times and order: events [n_held:] delayed by latency_us plus jitter_us * z (never by less
+    than 0, rounded to 1 us), [:n_held] already; with `ordered`, sorted by (time, pixel) stably. (times, order)."""
+    n = t.shape[0]
+    t_new = np.empty(n, np.int64)
+    for j in range(n_held):
+        t_new[j] = t[j]
+    for j in range(n_held, n):
+        d = latency_us
+        if jitter_us > 0.0:
+            d = max(d + jitter_us * z[j - n_held], 0.0)
+        t_new[j] = t[j] + np.int64(np.rint(d))
+    if not ordered:
+        return t_new, np.arange(n)
+    key = np.empty(n, np.int64)
+    for j in range(n):
+        key[j] = t_new[j] * n_pix + (np.int64(y[j]) * width + x[j])
+    order = stable_order(key)
+    return t_new[order], order
+
+
 @numba.njit(cache=True, nogil=True)
 def due(next_us, t1, scratch):
     """The number of processes whose next event is at or before t1 (us), their indices in scratch[:n]: one pass."""
@@ -501,36 +561,46 @@ class SensorModel:
         return EventBatch(x, y, t, pol, kind == 0, kind)
 
     def _deliver(self, batch: EventBatch, t1: int) -> EventBatch:
-        """Latency and readout applied to the interval's events; those at or before t1 (us) handed out, the rest held."""
-        p = self.params
+        """Latency and readout applied to the interval's events; those at or before t1 (us) handed out, the rest held.
+
+        The stages work on times and an index into the interval's events; each column is gathered once, at the end.
+        """
+        p, sim = self.params, self.sim
+        src, idx, t = batch, None, batch.t
         if p.latency_us > 0 or p.latency_jitter_us > 0:
-            delay = np.full(len(batch), p.latency_us)
-            if p.latency_jitter_us > 0:
-                delay = np.maximum(delay + p.latency_jitter_us * self._rng_time.standard_normal(len(batch)), 0.0)
-            batch = EventBatch(batch.x, batch.y, batch.t + np.rint(delay).astype(np.int64), batch.p, batch.signal,
-                               batch.noise_kind)
-            joined = EventBatch.concatenate([self._held, batch])
-            if p.latency_jitter_us > 0 or len(self._held):  # nearly sorted: the stable sort's runs are long
-                w, n_pix = self.sim.width, self.sim.width * self.sim.height
-                key = joined.t * n_pix + (joined.y.astype(np.int64) * w + joined.x)
-                joined = joined.select(np.argsort(key, kind="stable"))
-            cut = int(np.searchsorted(joined.t, t1, side="right"))
-            batch, self._held = joined.select(slice(0, cut)), joined.select(slice(cut, None))
+            z = self._rng_time.standard_normal(len(batch)) if p.latency_jitter_us > 0 else _NONE
+            src = EventBatch.concatenate([self._held, batch]) if len(self._held) else batch
+            # nearly sorted after a constant delay with nothing held: the order stays
+            t, idx = delayed(src.t, src.x, src.y, sim.width, sim.width * sim.height, len(self._held), z,
+                             float(p.latency_us), float(p.latency_jitter_us),
+                             p.latency_jitter_us > 0 or len(self._held) > 0)
+            cut = int(np.searchsorted(t, t1, side="right"))
+            self._held = _gather(src, idx[cut:], t[cut:])
+            idx, t = idx[:cut], t[:cut]
         if p.readout_limit_hz > 0:
-            keep, t_out, dropped = readout(batch.t, 1e6 / p.readout_limit_hz, int(p.readout_fifo_events),
-                                           self._arbiter)
+            keep, t_out, dropped = readout(t, 1e6 / p.readout_limit_hz, int(p.readout_fifo_events), self._arbiter)
             self.dropped += int(dropped)
-            batch = EventBatch(batch.x, batch.y, t_out, batch.p, batch.signal, batch.noise_kind)
             if dropped:
-                batch = batch.select(keep)
-            joined = EventBatch.concatenate([self._read, batch])
-            cut = int(np.searchsorted(joined.t, t1, side="right"))
-            batch, self._read = joined.select(slice(0, cut)), joined.select(slice(cut, None))
-        return batch
+                idx = np.flatnonzero(keep) if idx is None else idx[keep]
+                t_out = t_out[keep]
+            out = _gather(src, idx, t_out)
+            if len(self._read):
+                out = EventBatch.concatenate([self._read, out])
+            cut = int(np.searchsorted(out.t, t1, side="right"))
+            batch, self._read = out.select(slice(0, cut)), out.select(slice(cut, None))
+            return batch
+        return _gather(src, idx, t)
 
     def counts(self) -> dict:
         """What the readout dropped and what is still held after the last frame (events)."""
         return {"readout_dropped": int(self.dropped), "held_at_end": int(self.held)}
+
+
+def _gather(src: EventBatch, idx: np.ndarray | None, t: np.ndarray) -> EventBatch:
+    """The events idx of src (all, in order, if None) with the times t."""
+    if idx is None:
+        return EventBatch(src.x, src.y, t, src.p, src.signal, src.noise_kind)
+    return EventBatch(src.x[idx], src.y[idx], t, src.p[idx], src.signal[idx], src.noise_kind[idx])
 
 
 def _with_kinds(batch: EventBatch) -> EventBatch:

@@ -358,3 +358,11 @@ def test_bad_photoreceptor_noise_is_one_line_naming_field_unit_and_range(values,
         EventParams.parse(values, "events")
     text = str(exc.value)
     assert "\n" not in text and all(w in text for w in words), text
+
+
+@pytest.mark.parametrize("n, span", [(50, 10), (5_000, 3), (20_000, 2**20), (20_000, 2**40)])
+def test_the_latency_stage_radix_sort_is_numpys_stable_order(n, span):
+    from dvsot.events.sensor import stable_order
+
+    key = np.random.default_rng(n).integers(-span, span, n, dtype=np.int64)  # few distinct keys: many ties
+    np.testing.assert_array_equal(stable_order(key), np.argsort(key, kind="stable"))
