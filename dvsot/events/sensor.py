@@ -47,7 +47,7 @@ import numpy as np
 
 from dvsot.errors import UserError
 from dvsot.events.batch import NOISE_KINDS, EventBatch
-from dvsot.events.kernel import may_fire
+from dvsot.events.kernel import crossed
 
 if TYPE_CHECKING:
     from dvsot.events import EventParams, EventSimulator
@@ -96,28 +96,39 @@ def front_end(L, out, lp1, lp2, first, linlog_intensity, log_eps, order, dt_over
 
 
 @numba.njit(cache=True, nogil=True)
-def front_end_pass(L, out, lp1, lp2, linlog_intensity, log_eps, order, dt_over_tau, dark, photo, last, base, off, ref,
-                   gate_on, gate_off, cp, cn, scratch):
+def front_end_pass(L, out, lp1, lp2, linlog_intensity, log_eps, order, dt_over_tau, dark, photo, last, lo_log, hi_log,
+                   base, off, cp, cn, cand, l1c, l0c):
     """front_end after the first frame, plus photo (the photoreceptor noise; empty: none), fused with the level-crossing
-    kernel's first pass (kernel.may_fire, on the simulator's state): out, the pixels that may fire in scratch[:n];
-    (finite, n, levels crossed in all). One pass over the pixels instead of two."""
+    kernel's first pass on the simulator's state (kernel.crossed past the log bounds): (finite, n, levels in all),
+    the pixels that may fire in cand[:n], their values now and before in l1c[:n], l0c[:n].
+
+    With out empty (order 1, no noise) the output is lp1 itself and its value before the update the previous
+    sample; else out is written and last holds the previous sample.
+    """
     knee_log, knee_slope = _knee(linlog_intensity, log_eps)
+    direct = out.shape[0] == 0
     noisy = photo.shape[0] > 0
     finite = True
     n = 0
     bound = 0
     for i in range(L.shape[0]):
+        before = lp1[i] if direct else 0.0  # lp1 is empty without a low-pass
         v = _front_end_pixel(i, L[i], lp1, lp2, False, knee_log, knee_slope, linlog_intensity, log_eps, order,
                              dt_over_tau, dark)
         if noisy:
             v = v + photo[i]
-        out[i] = v
+        if not direct:
+            out[i] = v
         finite &= abs(v) < np.inf  # False for NaN too
-        k = may_fire(i, v, last, base, off, ref, gate_on, gate_off, cp, cn)
-        if k:
-            scratch[n] = i
-            n += 1
-            bound += k
+        if (v >= hi_log[i]) | (v <= lo_log[i]):
+            v0 = before if direct else last[i]
+            k = crossed(i, v, v0, base, off, cp, cn)
+            if k:
+                cand[n] = i
+                l1c[n] = v
+                l0c[n] = v0
+                n += 1
+                bound += k
     return finite, n, bound
 
 
@@ -180,23 +191,30 @@ def coded_front_end(codes, plog, inten01, out, lp1, lp2, first, order, dt_over_t
 
 
 @numba.njit(cache=True, nogil=True)
-def coded_front_end_pass(codes, plog, inten01, out, lp1, lp2, order, dt_over_tau, photo, last, base, off, ref,
-                         gate_on, gate_off, cp, cn, scratch):
+def coded_front_end_pass(codes, plog, inten01, out, lp1, lp2, order, dt_over_tau, photo, last, lo_log, hi_log, base,
+                         off, cp, cn, cand, l1c, l0c):
     """coded_front_end after the first frame, plus photo, fused with the kernel's first pass as front_end_pass is:
-    (n, levels crossed in all); the codes' tables are finite, so is out."""
+    (n, levels in all); the codes' tables are finite, so is the output."""
+    direct = out.shape[0] == 0
     noisy = photo.shape[0] > 0
     n = 0
     bound = 0
     for i in range(codes.shape[0]):
+        before = lp1[i] if direct else 0.0  # lp1 is empty without a low-pass
         v = _coded_pixel(i, codes[i], plog, inten01, lp1, lp2, False, order, dt_over_tau)
         if noisy:
             v = v + photo[i]
-        out[i] = v
-        k = may_fire(i, v, last, base, off, ref, gate_on, gate_off, cp, cn)
-        if k:
-            scratch[n] = i
-            n += 1
-            bound += k
+        if not direct:
+            out[i] = v
+        if (v >= hi_log[i]) | (v <= lo_log[i]):
+            v0 = before if direct else last[i]
+            k = crossed(i, v, v0, base, off, cp, cn)
+            if k:
+                cand[n] = i
+                l1c[n] = v
+                l0c[n] = v0
+                n += 1
+                bound += k
     return n, bound
 
 
@@ -354,6 +372,7 @@ class SensorModel:
         self._lp1 = np.empty(n) if p.lowpass_order else np.empty(0)
         self._lp2 = np.empty(n) if p.lowpass_order == 2 else np.empty(0)
         self._raw = np.empty(n)
+        self._l1c = self._l0c = _NONE  # the fused passes' candidate values, made at their first use
         self._outs = (np.empty(n), np.empty(n))  # the simulator keeps the previous one: written in turn
         self._frames = 0
         self._tables: tuple = (None,)  # (code table, photoreceptor table, inten01 table, intensity table)
@@ -422,10 +441,10 @@ class SensorModel:
             if p.lowpass_order == 0:  # the photoreceptor alone is another code table: the simulator's coded path
                 signal = sim.step(CodedFrame(codes.reshape(sim.height, sim.width), plog), t_us)
             elif fused:
-                out = self._outs[self._frames % 2]
+                out, last = self._pass_output(photo)
                 n, bound = coded_front_end_pass(codes, plog, inten01, out, self._lp1, self._lp2, p.lowpass_order,
                                                 dt_over_tau, photo, *self._pass_state())
-                signal = sim._step_candidates(out, n, bound, t_us)
+                signal = sim._step_candidates(n, bound, self._l1c, self._l0c, last, t_us)
             else:
                 out = self._outs[self._frames % 2]
                 coded_front_end(codes, plog, inten01, out, self._lp1, self._lp2, first, p.lowpass_order, dt_over_tau)
@@ -434,15 +453,16 @@ class SensorModel:
         else:
             raw = self._log(frame, is_log)
             self._inten_now = (raw, None)
-            out = self._outs[self._frames % 2]
             if fused:
+                out, last = self._pass_output(photo)
                 finite, n, bound = front_end_pass(raw, out, self._lp1, self._lp2, p.linlog_intensity, p.log_eps,
                                                   p.lowpass_order, dt_over_tau, p.dark_intensity, photo,
                                                   *self._pass_state())
                 if not finite:
                     raise UserError("frame contains NaN or infinite values")
-                signal = sim._step_candidates(out, n, bound, t_us)
+                signal = sim._step_candidates(n, bound, self._l1c, self._l0c, last, t_us)
             else:
+                out = self._outs[self._frames % 2]
                 front_end(raw, out, self._lp1, self._lp2, first, p.linlog_intensity, p.log_eps, p.lowpass_order,
                           dt_over_tau, p.dark_intensity)
                 signal = sim.step(np.add(out, photo, out=out).reshape(sim.height, sim.width) if photo.size else
@@ -476,11 +496,23 @@ class SensorModel:
         self._photo += math.sqrt(1.0 - a * a) * self._photo_rms * z
         return self._photo
 
+    def _pass_output(self, photo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(out, the frame's output as the simulator keeps it) for a fused pass: out empty when the low-pass state lp1
+        is the output itself (order 1, no photoreceptor noise), else this frame's buffer."""
+        if self.params.lowpass_order == 1 and not photo.size:
+            return _NONE, self._lp1
+        out = self._outs[self._frames % 2]
+        return out, out
+
     def _pass_state(self) -> tuple:
-        """The simulator's state the fused first passes read: last, base, off, ref, gates, thresholds, scratch."""
+        """What the fused first passes read and write beside the front end: the simulator's previous sample, log
+        bounds, base, offset and thresholds; the candidates and their values now and before."""
         sim = self.sim
-        return (sim._log_last(), sim._base, sim._off, sim._ref, sim._gate_on, sim._gate_off, sim._cp_px, sim._cn_px,
-                sim._scratch)
+        n = sim.width * sim.height
+        if self._l1c.size != n:
+            self._l1c, self._l0c = np.empty(n), np.empty(n)
+        return (sim._log_last(), *sim._fresh_log_bounds(), sim._base, sim._off, sim._cp_px, sim._cn_px, sim._scratch,
+                self._l1c, self._l0c)
 
     def _check_hot(self, t0: int, t1: int) -> None:
         """UserError if the hot pixels or the brightest shot noise would draw too many events in (t0, t1] (us)."""

@@ -56,6 +56,7 @@ GATE_MARGIN = 1e-6
 
 
 _LINEAR = object()  # EventSimulator._bounds_for when the first pass's bounds are linear intensities
+_LOG = object()  # ... when they are log intensities (the sensor model's fused front ends)
 
 
 @dataclass(frozen=True)
@@ -199,10 +200,12 @@ class EventSimulator:
         self._last_kind: str | None = None
         self._last_src = np.empty(0)  # its codes or linear values, flat
         self._table: np.ndarray | None = None  # the table of codes in _last_src
-        # what the per-pixel bounds of the first pass are for: a table (_lo_code/_hi_code), _LINEAR, or None (stale)
+        # what the per-pixel bounds of the first pass are for: a table (_lo_code/_hi_code), _LINEAR, _LOG, or None
+        # (stale)
         self._bounds_for: object = None
         self._lo_code = self._hi_code = np.empty(0, np.int16)
         self._lo_lin = self._hi_lin = np.empty(0, np.float32)
+        self._lo_log = self._hi_log = np.empty(0, np.float32)
         self._index: tuple = (None,)  # (table, its bucket index: dvsot.events.kernel.code_index)
         self._checked_tables: list[np.ndarray] = []
         self._sensor = None  # the stages beyond the ideal pixel (dvsot.events.sensor), when any is on
@@ -318,22 +321,34 @@ class EventSimulator:
         self._t_prev = t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
 
-    def _step_candidates(self, L1: np.ndarray, n_cand: int, bound: int, t_us: int) -> EventBatch:
-        """step() for a flat float64 log frame L1 (kept, not copied) whose first pass the caller has run: the pixels
-        that may fire in self._scratch[:n_cand], crossing `bound` levels in all (see kernel.may_fire).
+    def _fresh_log_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) float32 log bounds of every pixel for its reference (kernel.log_bounds), computed if stale."""
+        if self._bounds_for is not _LOG:
+            from dvsot.events.kernel import log_bounds
 
-        For the sensor model's front ends, which make L1 and test each pixel in one loop; only after the first
-        frame, with fixed thresholds, and with the interval checked (`_interval`) before the caller's pass.
+            if self._lo_log.shape != self._ref.shape:
+                self._lo_log, self._hi_log = (np.empty(self._ref.shape, np.float32) for _ in range(2))
+            log_bounds(self._ref, self._gate_on, self._gate_off, self._lo_log, self._hi_log)
+            self._bounds_for = _LOG
+        return self._lo_log, self._hi_log
+
+    def _step_candidates(self, n: int, bound: int, l1c: np.ndarray, l0c: np.ndarray, last: np.ndarray,
+                         t_us: int) -> EventBatch:
+        """step() for a frame whose first pass the caller has run (dvsot.events.sensor's fused front ends, on the log
+        bounds of `_fresh_log_bounds`): the n pixels that may fire in self._scratch[:n], crossing `bound` levels in
+        all, their log intensities now and before in l1c[:n] and l0c[:n]; `last` (flat float64, kept, not copied)
+        is the frame's log intensity as the next interval starts from.
+
+        Only after the first frame, with fixed thresholds, and with the interval checked (`_interval`) first.
         """
-        from dvsot.events.kernel import candidate_events
+        from dvsot.events.kernel import candidate_value_events
 
         t0, t1 = self._t_prev, int(t_us)
-        self._log_last()
-        x, y, t, pol = candidate_events(self._scratch[:n_cand], bound, L1, self._last, self._base, self._off,
-                                        self._ref, self._cp_px, self._cn_px, self._last_event,
-                                        float(self.params.refractory_us), t0, t1, self.width)
-        self._bounds_for = None  # references moved outside the kernels that keep bounds
-        self._keep_last(L1)
+        x, y, t, pol = candidate_value_events(self._scratch[:n], l1c[:n], l0c[:n], bound, self._base, self._off,
+                                              self._ref, self._lo_log, self._hi_log, self._gate_on, self._gate_off,
+                                              self._cp_px, self._cn_px, self._last_event,
+                                              float(self.params.refractory_us), t0, t1, self.width)
+        self._keep_last(last)
         self._t_prev = t1
         return EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
 
