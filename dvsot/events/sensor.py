@@ -247,6 +247,36 @@ def readout(t_in, period_us, fifo, state):
     return keep, t_out, dropped
 
 
+@numba.njit(cache=True, nogil=True)
+def merge_sorted(sx, sy, st, sp, width, n_pix, nkey, npix, nt, npol, nkind):
+    """Signal events (sorted by time, then pixel) and noise events sorted by nkey = time * n_pix + pixel as one
+    sequence in that order, a signal event before noise of the same key: x, y, t, p and kind (0 for signal)."""
+    ns, nn = st.shape[0], nkey.shape[0]
+    total = ns + nn
+    x = np.empty(total, np.uint16)
+    y = np.empty(total, np.uint16)
+    t = np.empty(total, np.int64)
+    p = np.empty(total, np.uint8)
+    kind = np.zeros(total, np.uint8)
+    i = 0
+    j = 0
+    for k in range(total):
+        if j < nn and (i >= ns or nkey[j] < st[i] * n_pix + (np.int64(sy[i]) * width + sx[i])):
+            x[k] = npix[j] % width
+            y[k] = npix[j] // width
+            t[k] = nt[j]
+            p[k] = npol[j]
+            kind[k] = nkind[j]
+            j += 1
+        else:
+            x[k] = sx[i]
+            y[k] = sy[i]
+            t[k] = st[i]
+            p[k] = sp[i]
+            i += 1
+    return x, y, t, p, kind
+
+
 # below this many keys stable_order calls a merge sort: a radix pass costs a 2^16-entry histogram
 RADIX_MIN_KEYS = 4096
 
@@ -308,14 +338,20 @@ def delayed(t, x, y, width, n_pix, n_held, z, latency_us, jitter_us, ordered):
 
 
 @numba.njit(cache=True, nogil=True)
-def due(next_us, t1, scratch):
-    """The number of processes whose next event is at or before t1 (us), their indices in scratch[:n]: one pass."""
+def due(next_us, among, t1, scratch):
+    """The number of the processes `among` (increasing indices) whose next event is at or before t1 (us), their
+    indices in scratch[:n], in the same order: one pass."""
     n = 0
-    for i in range(next_us.shape[0]):
+    for j in range(among.shape[0]):
+        i = among[j]
         if next_us[i] <= t1:
             scratch[n] = i
             n += 1
     return n
+
+
+# Renewal processes list those due within this many frame intervals, then test only them frame by frame
+SOON_INTERVALS = 64
 
 
 class Renewal:
@@ -338,11 +374,18 @@ class Renewal:
         idx = np.arange(self.pixels.size)
         self._next_us = t_us + self._rng.random(idx.size) * self._periods_us(idx, length_biased=True)
         self._scratch = np.empty(idx.size, np.int64)
+        self._t_last = float(t_us)
+        self._horizon = -math.inf  # the processes due by then are in _soon (all others' next events come later)
+        self._soon = idx
 
     def events(self, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """(pixel, float us time) of the events up to t1, the processes moved past t1."""
+        if t1 > self._horizon:  # a process's next event only moves later: one outside _soon stays outside
+            self._horizon = t1 + SOON_INTERVALS * max(t1 - self._t_last, 1.0)
+            self._soon = np.flatnonzero(self._next_us <= self._horizon)
+        self._t_last = t1
         pix, times = [], []
-        now = self._scratch[:due(self._next_us, t1, self._scratch)].copy()
+        now = self._scratch[:due(self._next_us, self._soon, t1, self._scratch)].copy()
         while now.size:
             pix.append(self.pixels[now])
             times.append(self._next_us[now])
@@ -575,21 +618,11 @@ class SensorModel:
         nt = np.concatenate([np.rint(part[1]).astype(np.int64) for part in noise])
         npol = np.concatenate([part[2].astype(np.uint8) for part in noise])
         nkind = np.concatenate([np.full(part[0].size, part[3], np.uint8) for part in noise])
-        # the signal events are in (time, pixel) order already: the few noise events are sorted and inserted
+        # the signal events are in (time, pixel) order already: the few noise events are sorted and merged in
         nkey = nt * n_pix + npix
         order = np.argsort(nkey, kind="stable")
-        skey = signal.t * n_pix + (signal.y.astype(np.int64) * w + signal.x)
-        at = np.searchsorted(skey, nkey[order], side="right") + np.arange(order.size)  # after equal signal keys
-        total = len(signal) + order.size
-        is_noise = np.zeros(total, bool)
-        is_noise[at] = True
-        kind = np.zeros(total, np.uint8)
-        kind[at] = nkind[order]
-        t, pol = np.empty(total, np.int64), np.empty(total, np.uint8)
-        x, y = np.empty(total, np.uint16), np.empty(total, np.uint16)
-        t[at], pol[at], x[at], y[at] = nt[order], npol[order], npix[order] % w, npix[order] // w
-        rest = ~is_noise
-        t[rest], pol[rest], x[rest], y[rest] = signal.t, signal.p, signal.x, signal.y
+        x, y, t, pol, kind = merge_sorted(signal.x, signal.y, signal.t, signal.p, w, n_pix, nkey[order], npix[order],
+                                          nt[order], npol[order], nkind[order])
         return EventBatch(x, y, t, pol, kind == 0, kind)
 
     def _deliver(self, batch: EventBatch, t1: int) -> EventBatch:
