@@ -35,6 +35,11 @@ events. With any stage on, a SensorModel wraps the simulator, in signal order:
 Events delayed past the current frame are held and handed out with a later frame, so every batch
 stays time-ordered; those still held after the last frame are counted as `held_at_end`. All state is
 per pixel (or per held event): memory does not grow with the number of frames.
+
+After the first frame (fixed thresholds) the front end also runs the level-crossing kernel's first pass in
+the same loop (front_end_pass, coded_front_end_pass: float32 log bounds per pixel, then the exact count),
+and the simulator only times the crossings of the pixels it found; the events are those of the separate
+passes, bit for bit.
 """
 
 from __future__ import annotations
