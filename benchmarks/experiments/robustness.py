@@ -16,17 +16,25 @@ ARscore per tracker), robustness.md (per variant: ARscore per tracker, the mean 
 deviation over the seeds when there are several), robustness.png (ARscore per tracker against the measured
 noise rate, one marker per preset, bars of one standard deviation over seeds) and, with
 --picture-segment N, segment.png: that segment's events under every variant of the first seed side by side.
+OUT holds one run's files: they are staged and renamed into place together at the end with run.json (the
+run's manifest), the previous run's files that this one does not write removed in the same commit; an
+interrupted or failed run leaves OUT as it was, and an OUT that holds other files is refused before any work.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+MANIFEST = "run.json"  # the run's manifest in OUT (dvsot.runtime.outputs): its files' sizes and SHA-256, written last
+TABLE_FILES = ("robustness.csv", "robustness.md", "robustness.png")
+PICTURE_FILE = "segment.png"
 
 
 def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path, values: dict,
@@ -38,6 +46,7 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     from dvsot.errors import UserError
     from dvsot.events import EventParams, EventSimulator
     from dvsot.pipeline.sequence import write_sequence
+    from dvsot.runtime.outputs import readable
 
     with Dataset(sequence) as ds:
         track, attrs = ds.boxes(), dict(ds.attrs)
@@ -56,7 +65,7 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     path, counts = write_sequence(output, frames, track.t, sim, out_attrs, segment_us, source=str(frames_dir),
                                   boxes=lambda: (track.t, track.xywh, track.xywh_visible))
     noise = 0
-    with Dataset(path) as ds:
+    with Dataset(readable(path)) as ds:  # inside a run: the staged file, renamed into place at the run's end
         for batch in ds.chunks():
             noise += 0 if batch.signal is None else int(np.count_nonzero(~batch.signal))
     seconds = max(int(track.t[-1]) + 1, duration_us) / 1e6
@@ -69,6 +78,26 @@ def variant_name(preset: str, rate: float | None) -> str:
     return preset if rate is None else f"{preset}_noise{rate:g}"
 
 
+def variants(presets: list[str], noise_hz: list[float | None] | None,
+             seeds: list[int] | None) -> list[tuple[str, str, float | None, int | None, str]]:
+    """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep order."""
+    out = []
+    for preset in presets:
+        for rate in (noise_hz if noise_hz else [None]):
+            name = variant_name(preset, rate)
+            for seed in (seeds if seeds else [None]):
+                out.append((name, preset, rate, seed,
+                            f"{name}.h5" if seed is None or len(seeds) == 1 else f"{name}_seed{seed}.h5"))
+    return out
+
+
+def output_names(presets: list[str], noise_hz: list[float | None] | None, seeds: list[int] | None,
+                 picture: bool) -> list[str]:
+    """Every file a run writes in OUT: the variants' dataset files, the tables, the picture if asked, the manifest."""
+    return ([v[-1] for v in variants(presets, noise_hz, seeds)] + list(TABLE_FILES)
+            + ([PICTURE_FILE] if picture else []) + [MANIFEST])
+
+
 def sweep(sequence: str | Path, frames_dir: str | Path, trackers: list[str], presets: list[str],
           noise_hz: list[float | None] | None, out_dir: str | Path, max_segments: int | None = None,
           jobs: int = 1, seeds: list[int] | None = None) -> list[dict]:
@@ -78,27 +107,60 @@ def sweep(sequence: str | Path, frames_dir: str | Path, trackers: list[str], pre
     from benchmarks.evaluation.runner import benchmark
     from dvsot.events import EventParams
 
+    from dvsot.runtime.outputs import readable
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
-    for preset in presets:
-        for rate in (noise_hz if noise_hz else [None]):
-            name = variant_name(preset, rate)
-            values = {"preset": preset} if rate is None else {"preset": preset, "shot_noise_hz": rate}
-            for seed in (seeds if seeds else [None]):
-                file = out_dir / (f"{name}.h5" if seed is None or len(seeds) == 1 else f"{name}_seed{seed}.h5")
-                stats = resimulate(sequence, frames_dir, file, values, seed)
-                row = {"variant": name, "preset": preset, "seed": stats["seed"], "file": file.name,
-                       "set_shot_noise_hz": EventParams.parse(values, "robustness variant").shot_noise_hz,
-                       "measured_noise_hz": round(stats["noise_hz"], 4), "events": stats["events"]}
-                for result in benchmark(trackers, [file], jobs=jobs, max_segments=max_segments):
-                    s = scores(result.iou)
-                    row[f"{result.tracker}_A"] = round(s.accuracy, 4)
-                    row[f"{result.tracker}_R"] = round(s.robustness, 4)
-                    row[f"{result.tracker}_ARscore"] = round(s.arscore, 4)
-                    if result.error:
-                        row[f"{result.tracker}_error"] = result.error
-                rows.append(row)
+    for name, preset, rate, seed, file_name in variants(presets, noise_hz, seeds):
+        values = {"preset": preset} if rate is None else {"preset": preset, "shot_noise_hz": rate}
+        file = out_dir / file_name
+        stats = resimulate(sequence, frames_dir, file, values, seed)
+        row = {"variant": name, "preset": preset, "seed": stats["seed"], "file": file.name,
+               "set_shot_noise_hz": EventParams.parse(values, "robustness variant").shot_noise_hz,
+               "measured_noise_hz": round(stats["noise_hz"], 4), "events": stats["events"]}
+        for result in benchmark(trackers, [readable(file)], jobs=jobs, max_segments=max_segments):
+            s = scores(result.iou)
+            row[f"{result.tracker}_A"] = round(s.accuracy, 4)
+            row[f"{result.tracker}_R"] = round(s.robustness, 4)
+            row[f"{result.tracker}_ARscore"] = round(s.arscore, 4)
+            if result.error:
+                row[f"{result.tracker}_error"] = result.error
+        rows.append(row)
+    return rows
+
+
+def run(sequence: str | Path, frames_dir: str | Path, trackers: list[str], presets: list[str],
+        noise_hz: list[float | None] | None, out_dir: str | Path, max_segments: int | None = None, jobs: int = 1,
+        seeds: list[int] | None = None, picture_segment: int | None = None) -> list[dict]:
+    """A whole sweep into out_dir as one run (see the module docstring): OUT checked first (UserError if it holds
+    other files), every file staged, all renamed into place together with the manifest at the end; the rows."""
+    from dvsot.errors import UserError
+    from dvsot.runtime.outputs import readable, run_dir, run_outputs
+
+    out = Path(out_dir)
+    run_dir(out, "--out", output_names(presets, noise_hz, seeds, picture_segment is not None), MANIFEST)
+    made = not out.exists()
+    try:
+        with run_outputs(out / MANIFEST, whole=True):
+            rows = sweep(sequence, frames_dir, trackers, presets, noise_hz, out, max_segments, jobs, seeds)
+            write_outputs(rows, trackers, out, Path(sequence).stem)
+            if picture_segment is not None:
+                from benchmarks.analysis.pictures import plot_segment_side_by_side
+
+                first = {}
+                for row in rows:
+                    first.setdefault(row["variant"], readable(out / row["file"]))
+                try:
+                    plot_segment_side_by_side(first, picture_segment, out / PICTURE_FILE,
+                                              title=f"{Path(sequence).stem}, segment {picture_segment}")
+                except ValueError as exc:
+                    raise UserError(str(exc)) from None
+    except BaseException:
+        if made:  # the directory this run made for its staged files: nothing of the run stays
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     return rows
 
 
@@ -223,20 +285,8 @@ def main() -> None:
                     raise UserError(f"--picture-segment: {args.picture_segment} is not a segment of {args.sequence} "
                                     f"(0..{ds.num_segments - 1})")
         out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
-        rows = sweep(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
-                     args.max_segments, args.jobs, args.event_seed)
-        write_outputs(rows, args.tracker, out, Path(args.sequence).stem)
-        if args.picture_segment is not None:
-            from benchmarks.analysis.pictures import plot_segment_side_by_side
-
-            first = {}
-            for row in rows:
-                first.setdefault(row["variant"], out / row["file"])
-            try:
-                plot_segment_side_by_side(first, args.picture_segment, out / "segment.png",
-                                          title=f"{Path(args.sequence).stem}, segment {args.picture_segment}")
-            except ValueError as exc:
-                raise UserError(str(exc)) from None
+        run(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
+            args.max_segments, args.jobs, args.event_seed, args.picture_segment)
     except UserError as exc:  # one line, exit 2, as dvsot's commands do
         print(f"benchmarks.experiments.robustness: {exc}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -49,6 +49,8 @@ _STAGE_FLAGS = {
     "linlog_intensity": (float, "intensity (1 = full scale) below which the photoreceptor is linear (ideal: 0, log)"),
     "lowpass_order": (int, "photoreceptor low-pass stages: 0 (ideal), 1 or 2"),
     "lowpass_cutoff_hz": (float, "low-pass 3 dB cutoff at full-scale intensity, Hz"),
+    "photoreceptor_noise_hz": (float, "noise events per pixel per second from Gaussian photoreceptor noise "
+                                      "(ideal: 0, off; needs --lowpass-order)"),
     "dark_intensity": (float, "dark current as an intensity (1 = full scale; default 20/255, v2e's)"),
     "shot_noise_bright_factor": (float, "shot-noise rate at full-scale intensity over the rate in the dark "
                                         "(ideal: 1)"),

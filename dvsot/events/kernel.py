@@ -23,6 +23,9 @@ REFRACTORY_SLACK_US = 1e-6
 # Intervals longer than this (microseconds) are time-ordered by a stable merge sort instead of a
 # counting sort over every microsecond of the interval.
 MAX_COUNTING_US = 1 << 22
+# Log bounds (the sensor model's front ends) are put this far (log intensity) inside the gates: far more than the
+# rounding of v - ref, so a pixel that passes a gate is past its bound.
+LOG_SLACK = 1e-9
 # Buckets of the index that turns a pixel's reference into the codes it may fire at (code_index): finer
 # than an 8-bit log table's steps, so its bounds are a code or two wider than the exact ones.
 CODE_BUCKETS = 4096
@@ -71,13 +74,21 @@ def interval_events(L1, last, base, off, ref, gate_on, gate_off, cp, cn, last_ev
                 bound += int(k_hi - k_lo) + 1
     if not finite:
         return False, *_time_ordered(scratch[:0].astype(np.int64), scratch[:0].astype(np.int64), t0, 0, width)
+    return True, *candidate_events(scratch[:n_cand], bound, L1, last, base, off, ref, cp, cn, last_event,
+                                   refractory_us, t0, t1, width)
+
+
+@numba.njit(cache=True, nogil=True)
+def candidate_events(cand, bound, L1, last, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, width):
+    """interval_events' second pass: the crossings of the pixels cand (pixel order) that a first pass found, bound
+    the number of their levels crossed; x, y, t (us), p in time order, the references moved (arguments as there)."""
     code = np.empty(bound, np.int64)  # pixel * 2 + polarity
     trel = np.empty(bound, np.int64)  # whole microseconds after t0
     ne = 0
-    for j in range(n_cand):
-        i = scratch[j]
+    for j in range(cand.shape[0]):
+        i = cand[j]
         ne = _emit(i, L1[i], last[i], base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne)
-    return True, *_time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -104,6 +115,46 @@ def _emit(i, l1, l0, base, off, ref, cp, cn, last_event, refractory_us, t0, t1, 
         trel[ne] = np.int64(np.rint(dt))
         ne += 1
     return ne
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _log_bounds(r, g_on, g_off):
+    """(lo, hi) float32: a log intensity v can pass a gate of reference r (v - r >= g_on or <= -g_off) only if v <= lo
+    or v >= hi. LOG_SLACK inside the gates, then rounded outwards past float32's rounding (6e-8 of the value)."""
+    hi = r + g_on - LOG_SLACK
+    lo = r - g_off + LOG_SLACK
+    return np.float32(lo + abs(lo) * 2.5e-7), np.float32(hi - abs(hi) * 2.5e-7)
+
+
+@numba.njit(cache=True, nogil=True)
+def log_bounds(ref, gate_on, gate_off, lo_log, hi_log):
+    """Every pixel's log bounds for reference ref (see _log_bounds), in place."""
+    for i in range(ref.shape[0]):
+        lo_log[i], hi_log[i] = _log_bounds(ref[i], gate_on[i], gate_off[i])
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def crossed(i, v, v0, base, off, cp, cn):
+    """The number of levels pixel i crosses from v0 to v (0: none): for the compiled loops of dvsot.events.sensor,
+    which make v themselves and test it against the log bounds first (a superset of the gates, which every
+    crossing passes)."""
+    _, _, _, _, k_lo, k_hi = _levels(v, v0, base[i], off[i], cp[i], cn[i])
+    return int(k_hi - k_lo) + 1 if k_hi >= k_lo else 0
+
+
+@numba.njit(cache=True, nogil=True)
+def candidate_value_events(cand, l1c, l0c, bound, base, off, ref, lo_log, hi_log, gate_on, gate_off, cp, cn,
+                           last_event, refractory_us, t0, t1, width):
+    """candidate_events for pixels given with their values now (l1c) and before (l0c); the log bounds of the pixels
+    whose reference moves are updated."""
+    code = np.empty(bound, np.int64)
+    trel = np.empty(bound, np.int64)
+    ne = 0
+    for j in range(cand.shape[0]):
+        i = cand[j]
+        ne = _emit(i, l1c[j], l0c[j], base, off, ref, cp, cn, last_event, refractory_us, t0, t1, code, trel, ne)
+        lo_log[i], hi_log[i] = _log_bounds(ref[i], gate_on[i], gate_off[i])
+    return _time_ordered(code[:ne], trel[:ne], t0, t1 - t0, width)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -12,8 +12,15 @@ if TYPE_CHECKING:
 
 V2E_DARK = 20.0 / 255.0  # v2e's intensity offset, 20 DN of 255: its lin-log knee and its inten01 = (DN + 20) / 275
 
+# Photoreceptor noise (Graca and Delbruck 2021, arXiv:2109.08640, Fig. 3, as v2e fits it in v2ecore/emulator_utils.py,
+# compute_photoreceptor_noise_voltage): log10(threshold / noise RMS) as a cubic in x = log10(ON noise events per second
+# per Hz of the noise's 3 dB bandwidth), highest power first
+PHOTORECEPTOR_NOISE_FIT = (-0.0026, -0.036, -0.1949, 0.321)
+PHOTORECEPTOR_NOISE_FIT_RANGE = (1e-5, 1.0)  # the ON rates per Hz of bandwidth the fit covers (x from -5 to 0)
+
 # The fields of the stages, each off at its default: the `ideal` model sets none of them.
-SENSOR_FIELDS = ("linlog_intensity", "lowpass_order", "lowpass_cutoff_hz", "shot_noise_bright_factor",
+SENSOR_FIELDS = ("linlog_intensity", "lowpass_order", "lowpass_cutoff_hz", "photoreceptor_noise_hz",
+                 "shot_noise_bright_factor",
                  "leak_spread_decades", "leak_period_cv", "hot_pixel_fraction", "hot_pixel_hz", "latency_us",
                  "latency_jitter_us", "readout_limit_hz")
 

@@ -56,6 +56,7 @@ GATE_MARGIN = 1e-6
 
 
 _LINEAR = object()  # EventSimulator._bounds_for when the first pass's bounds are linear intensities
+_LOG = object()  # ... when they are log intensities (the sensor model's fused front ends)
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,9 @@ class EventParams(BaseModel):
                                     "photoreceptor is linear; 0 = log everywhere")
     lowpass_order: Literal[0, 1, 2] = Field(0, description="photoreceptor low-pass: 0 off, 1 or 2 stages")
     lowpass_cutoff_hz: float = Field(0.0, ge=0, description="low-pass 3 dB cutoff at full-scale intensity, Hz")
+    photoreceptor_noise_hz: float = Field(0.0, ge=0, description="noise events per pixel per second (ON and OFF) "
+                                          "wanted from Gaussian noise on the log photoreceptor output, low-passed "
+                                          "at lowpass_cutoff_hz; 0 = off")
     dark_intensity: float = Field(20 / 255, gt=0, le=1, description="dark current as an intensity (1 = full scale): "
                                   "the low-pass's bandwidth and the shot noise scale with (I + dark) / (1 + dark)")
     shot_noise_bright_factor: float = Field(1.0, ge=0, le=100, description="shot-noise rate at full-scale intensity "
@@ -120,6 +124,19 @@ class EventParams(BaseModel):
         if self.lowpass_order and self.lowpass_cutoff_hz <= 0:
             raise ValueError(f"lowpass_cutoff_hz {self.lowpass_cutoff_hz:g} Hz: must be > 0 Hz with lowpass_order "
                              f"{self.lowpass_order}")
+        if self.photoreceptor_noise_hz > 0:
+            from dvsot.events.presets import PHOTORECEPTOR_NOISE_FIT_RANGE
+
+            if not self.lowpass_order:
+                raise ValueError(f"photoreceptor_noise_hz {self.photoreceptor_noise_hz:g} Hz: needs lowpass_order 1 "
+                                 "or 2 (the noise's bandwidth is lowpass_cutoff_hz); lowpass_order is 0")
+            lo, hi = (2 * r * self.lowpass_cutoff_hz for r in PHOTORECEPTOR_NOISE_FIT_RANGE)
+            if not lo <= self.photoreceptor_noise_hz <= hi:
+                raise ValueError(f"photoreceptor_noise_hz {self.photoreceptor_noise_hz:g} Hz: must be 0 (off) or "
+                                 f"within {lo:g}..{hi:g} events per pixel per second with lowpass_cutoff_hz "
+                                 f"{self.lowpass_cutoff_hz:g} Hz ({2 * PHOTORECEPTOR_NOISE_FIT_RANGE[0]:g} to "
+                                 f"{2 * PHOTORECEPTOR_NOISE_FIT_RANGE[1]:g} times the cutoff: the range of the "
+                                 "rate's fit)")
         if 0 < self.readout_limit_hz < 1:
             raise ValueError(f"readout_limit_hz {self.readout_limit_hz:g} events/s: must be 0 (unlimited) or >= 1")
         return self
@@ -183,10 +200,12 @@ class EventSimulator:
         self._last_kind: str | None = None
         self._last_src = np.empty(0)  # its codes or linear values, flat
         self._table: np.ndarray | None = None  # the table of codes in _last_src
-        # what the per-pixel bounds of the first pass are for: a table (_lo_code/_hi_code), _LINEAR, or None (stale)
+        # what the per-pixel bounds of the first pass are for: a table (_lo_code/_hi_code), _LINEAR, _LOG, or None
+        # (stale)
         self._bounds_for: object = None
         self._lo_code = self._hi_code = np.empty(0, np.int16)
         self._lo_lin = self._hi_lin = np.empty(0, np.float32)
+        self._lo_log = self._hi_log = np.empty(0, np.float32)
         self._index: tuple = (None,)  # (table, its bucket index: dvsot.events.kernel.code_index)
         self._checked_tables: list[np.ndarray] = []
         self._sensor = None  # the stages beyond the ideal pixel (dvsot.events.sensor), when any is on
@@ -301,6 +320,37 @@ class EventSimulator:
         self._keep_last(L1)
         self._t_prev = t1
         return signal if noise[0].size == 0 else _merge_noise(signal, noise, self.width, t0)
+
+    def _fresh_log_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) float32 log bounds of every pixel for its reference (kernel.log_bounds), computed if stale."""
+        if self._bounds_for is not _LOG:
+            from dvsot.events.kernel import log_bounds
+
+            if self._lo_log.shape != self._ref.shape:
+                self._lo_log, self._hi_log = (np.empty(self._ref.shape, np.float32) for _ in range(2))
+            log_bounds(self._ref, self._gate_on, self._gate_off, self._lo_log, self._hi_log)
+            self._bounds_for = _LOG
+        return self._lo_log, self._hi_log
+
+    def _step_candidates(self, n: int, bound: int, l1c: np.ndarray, l0c: np.ndarray, last: np.ndarray,
+                         t_us: int) -> EventBatch:
+        """step() for a frame whose first pass the caller has run (dvsot.events.sensor's fused front ends, on the log
+        bounds of `_fresh_log_bounds`): the n pixels that may fire in self._scratch[:n], crossing `bound` levels in
+        all, their log intensities now and before in l1c[:n] and l0c[:n]; `last` (flat float64, kept, not copied)
+        is the frame's log intensity as the next interval starts from.
+
+        Only after the first frame, with fixed thresholds, and with the interval checked (`_interval`) first.
+        """
+        from dvsot.events.kernel import candidate_value_events
+
+        t0, t1 = self._t_prev, int(t_us)
+        x, y, t, pol = candidate_value_events(self._scratch[:n], l1c[:n], l0c[:n], bound, self._base, self._off,
+                                              self._ref, self._lo_log, self._hi_log, self._gate_on, self._gate_off,
+                                              self._cp_px, self._cn_px, self._last_event,
+                                              float(self.params.refractory_us), t0, t1, self.width)
+        self._keep_last(last)
+        self._t_prev = t1
+        return EventBatch(x, y, t, pol, np.ones(t.shape[0], bool))
 
     def _redraws(self) -> bool:
         """True if the thresholds are drawn anew for every interval (then only the float kernel runs)."""

@@ -8,6 +8,8 @@
   is renamed into place together when the block ends, or none is. The renames run with SIGINT/SIGTERM
   deferred, after a journal naming them all is on disk, so a SIGKILL midway is completed by the next
   run; a manifest (the journal, complete) written last names the run and each file's SHA-256.
+* `readable(path)`: where a file the open run has staged but not committed is read meanwhile (a run that
+  reads its own outputs back, as a sweep tracks the files it simulated).
 * `run_outputs(manifest, whole=True)`: the manifest's directory holds this run's files only: what the
   previous run's manifest names and this run does not write is removed in the same commit;
   `run_dir(root, flag, writes)` checks before any work that the directory holds no one else's files and
@@ -341,6 +343,16 @@ _current: contextvars.ContextVar[RunOutputs | None] = contextvars.ContextVar("dv
 def current_run() -> RunOutputs | None:
     """The run whose `run_outputs()` block is open, if any."""
     return _current.get()
+
+
+def readable(path: str | os.PathLike) -> Path:
+    """Where `path`'s content is read now: its staged temp while the open run holds it uncommitted, else the path."""
+    run = _current.get()
+    if run is not None:
+        e = run._entries.get(target(path))
+        if e is not None and e["staged"]:
+            return Path(e["staged"])
+    return Path(path)
 
 
 @contextmanager

@@ -130,3 +130,87 @@ def test_the_picture_shows_every_variant_of_a_sweep(tmp_path, monkeypatch):
     assert (tmp_path / "out" / "segment.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(p.name for p in (tmp_path / "out").glob("*.h5")) == [
         "davis346_seed4.h5", "davis346_seed5.h5", "ideal_seed4.h5", "ideal_seed5.h5"]
+
+
+def _contents(directory):
+    """{relative path: bytes} of every file under a directory, hidden ones included."""
+    return {str(p.relative_to(directory)): p.read_bytes() for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def test_out_holds_one_run_whole_and_a_rerun_replaces_it(tmp_path, monkeypatch):
+    import json
+    import sys
+
+    from benchmarks.experiments.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)
+    out = tmp_path / "out"
+
+    def sweep_into(*variant_args):
+        monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", *variant_args,
+                                          "--out", str(out)])
+        main()
+
+    sweep_into("--preset", "ideal", "--preset", "noisy")
+    assert sorted(p.name for p in out.iterdir()) == ["ideal.h5", "noisy.h5", "robustness.csv", "robustness.md",
+                                                     "robustness.png", "run.json"]
+    manifest = json.loads((out / "run.json").read_text())
+    assert manifest["format"] == "dvsot-run" and "noisy.h5" in manifest["files"]
+    # the next run writes other variants: the previous run's files it does not write go, nothing is mixed
+    sweep_into("--preset", "davis346", "--noise-hz", "10")
+    assert sorted(p.name for p in out.iterdir()) == ["davis346_noise10.h5", "robustness.csv", "robustness.md",
+                                                     "robustness.png", "run.json"]
+    assert "noisy" not in (out / "robustness.csv").read_text()
+
+
+def test_an_interrupted_sweep_leaves_out_as_it_was(tmp_path, monkeypatch):
+    import sys
+
+    import benchmarks.evaluation.runner as runner
+    from benchmarks.experiments.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)
+    out = tmp_path / "out"
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--out", str(out)])
+    main()
+    before = _contents(out)
+    real, calls = runner.benchmark, []
+
+    def interrupted(*args, **kwargs):  # each run's second variant's tracking is where Ctrl-C lands
+        calls.append(args)
+        if len(calls) % 2 == 0:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "benchmark", interrupted)
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--preset", "ideal",
+                                      "--preset", "noisy", "--out", str(out)])
+    with pytest.raises(KeyboardInterrupt):
+        main()
+    assert len(calls) == 2 and _contents(out) == before  # no new file, no temp, the old files untouched
+    # into a directory that did not exist: nothing at all is left
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--preset", "ideal",
+                                      "--preset", "noisy", "--out", str(tmp_path / "fresh")])
+    with pytest.raises(KeyboardInterrupt):
+        main()
+    assert not (tmp_path / "fresh").exists()
+
+
+def test_an_out_that_holds_other_files_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    import sys
+
+    import benchmarks.evaluation.runner as runner
+    from benchmarks.experiments.robustness import main
+
+    seq, frames = kept_sequence(tmp_path, n=21)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    monkeypatch.setattr(runner, "benchmark", lambda *a, **k: pytest.fail("tracked before the check"))
+    monkeypatch.setattr(sys, "argv", ["robustness", str(seq), str(frames), "--tracker", "rct", "--out", str(out)])
+    with pytest.raises(SystemExit) as exc:
+        main()
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--out holds files that are not an earlier run's" in err and "notes.txt" in err and err.count("\n") == 1
+    assert _contents(out) == {"notes.txt": b"mine"}

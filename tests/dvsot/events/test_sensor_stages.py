@@ -217,6 +217,8 @@ def test_noise_kinds_are_written_and_read_back(tmp_path):
     (["--leak-hz", "-1"], ["--leak-hz", ">= 0", "per second"]),
     (["--hot-pixel-fraction", "1.5"], ["--hot-pixel-fraction", "<= 1"]),
     (["--readout-limit-hz", "0.5"], ["--readout-limit-hz", "events/s", ">= 1"]),
+    (["--lowpass-order", "1", "--lowpass-cutoff-hz", "30", "--photoreceptor-noise-hz", "100"],
+     ["--photoreceptor-noise-hz 100 Hz", "0.0006..60 events per pixel per second"]),
 ])
 def test_out_of_range_sensor_values_are_one_line_and_exit_2(tmp_path, capsys, flags, words):
     from dvsot.cli import main
@@ -271,3 +273,96 @@ def test_coded_linear_and_log_frames_give_the_same_events(preset):
     for kind in ("linear", "log"):
         for col in ("x", "y", "t", "p", "noise_kind"):
             np.testing.assert_array_equal(getattr(out[kind], col), getattr(out["coded"], col))
+
+
+def test_photoreceptor_noise_rms_is_the_rate_fit_over_the_smaller_threshold():
+    from dvsot.events.sensor import photoreceptor_noise_rms
+
+    # 60 events/s at 300 Hz: 30 ON events per second, x = log10(30 / 300) = -1, log10(C / rms) = 0.4825
+    assert photoreceptor_noise_rms(60.0, 300.0, 0.2, 0.2) == pytest.approx(0.2 / 10 ** 0.4825, rel=1e-12)
+    assert photoreceptor_noise_rms(60.0, 300.0, 0.2, 0.3) == photoreceptor_noise_rms(60.0, 300.0, 0.2, 0.2)
+    # with mismatch: the mean of the smaller of the two thresholds (a Gaussian minimum, in closed form)
+    rng = np.random.default_rng(0)
+    smaller = np.minimum(rng.normal(0.134, 0.03, 1_000_000), rng.normal(0.203, 0.04, 1_000_000)).mean()
+    assert photoreceptor_noise_rms(60.0, 300.0, 0.134, 0.203, 0.03, 0.04) == pytest.approx(
+        smaller / 10 ** 0.4825, rel=1e-3)
+    assert photoreceptor_noise_rms(600.0, 300.0, 0.2, 0.2) > photoreceptor_noise_rms(60.0, 300.0, 0.2, 0.2)
+
+
+def test_photoreceptor_noise_is_a_stationary_low_passed_gaussian():
+    """The noise of every pixel: RMS as set from the first frame on, correlation exp(-dt / tau) between frames."""
+    from dvsot.events.sensor import photoreceptor_noise_rms
+
+    n, cutoff, rate, dt_us = 20_000, 100.0, 20.0, 400
+    params = EventParams(cp=50.0, cn=50.0, lowpass_order=1, lowpass_cutoff_hz=cutoff, photoreceptor_noise_hz=rate)
+    sim = EventSimulator(n, 1, params, 5)
+    rms = photoreceptor_noise_rms(rate, cutoff, 50.0, 50.0)
+    frame = np.full((1, n), 0.5)
+    states = []
+    for k in range(3):
+        sim.step(frame, k * dt_us)
+        states.append(sim._sensor._photo.copy())
+    for s in states:
+        assert s.std() == pytest.approx(rms, rel=0.03) and abs(s.mean()) < 4 * rms / math.sqrt(n)
+    a = math.exp(-dt_us * 1e-6 * 2 * math.pi * cutoff)
+    assert np.corrcoef(states[0], states[1])[0, 1] == pytest.approx(a, abs=0.02)
+    assert np.corrcoef(states[0], states[2])[0, 1] == pytest.approx(a * a, abs=0.02)
+
+
+@pytest.mark.parametrize("rate", [50.0, 200.0])
+def test_photoreceptor_noise_gives_the_set_event_rate_on_a_static_frame(rate):
+    """Sampled finely (frames 1/100 of the time constant apart), a uniform static frame fires at the set rate, ON and
+    OFF alike, every event a level crossing (flagged signal); sampled coarsely, crossings between frames are missed."""
+    n, cutoff = 4_000, 300.0
+    params = EventParams(lowpass_order=1, lowpass_cutoff_hz=cutoff, photoreceptor_noise_hz=rate)
+    frame = np.full(n, math.log(0.5 + 1e-3))
+
+    def measured(dt_us: int, seconds: float) -> tuple[float, EventBatch]:
+        steps = int(seconds * 1e6 / dt_us)
+        ev, _ = run(params, [frame] * (steps + 1), [k * dt_us for k in range(steps + 1)], n, seed=2)
+        return len(ev) / n / seconds, ev
+
+    fine, ev = measured(5, 0.01)  # dt / tau = 0.0094
+    assert fine == pytest.approx(rate, rel=0.1)
+    assert ev.p.mean() == pytest.approx(0.5, abs=0.03) and ev.signal.all()
+    coarse, _ = measured(50, 0.02)  # dt / tau = 0.094
+    assert coarse < 0.85 * fine
+
+
+def test_photoreceptor_noise_is_seeded_and_off_leaves_every_other_draw():
+    n, frames = 500, [np.full(500, math.log(0.3 + 1e-3))] * 40
+    times = [k * 20 for k in range(40)]
+    base = dict(preset="davis346", readout_limit_hz=0.0, latency_jitter_us=0.0, shot_noise_hz=2000.0)
+    with_noise = EventParams(**base, photoreceptor_noise_hz=100.0)
+    a, _ = run(with_noise, frames, times, n, seed=8)
+    b, _ = run(with_noise, frames, times, n, seed=8)
+    c, _ = run(with_noise, frames, times, n, seed=9)
+    assert len(a) > 0 and np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x) and not np.array_equal(a.x, c.x)
+    # the shot noise draws its own stream: the same shot events with the photoreceptor noise on or off
+    off, _ = run(EventParams(**base), frames, times, n, seed=8)
+    shot = NOISE_KINDS.index("shot")
+    on_shot, off_shot = a.select(a.noise_kind == shot), off.select(off.noise_kind == shot)
+    for col in ("x", "t", "p"):
+        assert np.array_equal(getattr(on_shot, col), getattr(off_shot, col))
+
+
+@pytest.mark.parametrize("values, words", [
+    (dict(photoreceptor_noise_hz=5.0), ["photoreceptor_noise_hz 5 Hz", "needs lowpass_order 1 or 2"]),
+    (dict(photoreceptor_noise_hz=-1.0), ["photoreceptor_noise_hz", ">= 0", "events per pixel per second"]),
+    (dict(lowpass_order=1, lowpass_cutoff_hz=30.0, photoreceptor_noise_hz=100.0),
+     ["photoreceptor_noise_hz 100 Hz", "within 0.0006..60 events per pixel per second", "lowpass_cutoff_hz 30 Hz"]),
+    (dict(lowpass_order=1, lowpass_cutoff_hz=30.0, photoreceptor_noise_hz=1e-4), ["within 0.0006..60"]),
+])
+def test_bad_photoreceptor_noise_is_one_line_naming_field_unit_and_range(values, words):
+    with pytest.raises(UserError) as exc:
+        EventParams.parse(values, "events")
+    text = str(exc.value)
+    assert "\n" not in text and all(w in text for w in words), text
+
+
+@pytest.mark.parametrize("n, span", [(50, 10), (5_000, 3), (20_000, 2**20), (20_000, 2**40)])
+def test_the_latency_stage_radix_sort_is_numpys_stable_order(n, span):
+    from dvsot.events.sensor import stable_order
+
+    key = np.random.default_rng(n).integers(-span, span, n, dtype=np.int64)  # few distinct keys: many ties
+    np.testing.assert_array_equal(stable_order(key), np.argsort(key, kind="stable"))

@@ -152,3 +152,16 @@ def test_the_writability_probe_leaves_nothing_when_a_signal_lands_inside_it(tmp_
         outputs.check_writable(tmp_path, "-o")
     monkeypatch.undo()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_staged_output_is_read_at_its_temp_until_the_commit(tmp_path):
+    from dvsot.runtime.outputs import readable, replacing, run_outputs
+
+    out = tmp_path / "a.txt"
+    assert readable(out) == out  # no run open
+    with run_outputs():
+        with replacing(out) as tmp:
+            tmp.write_text("new")
+        assert not out.exists() and readable(out).read_text() == "new"
+        assert readable(tmp_path / "b.txt") == tmp_path / "b.txt"  # not this run's
+    assert readable(out) == out and out.read_text() == "new"
