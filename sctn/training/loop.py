@@ -138,7 +138,8 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
             if validate is not None and step % cfg.val_every == 0:
                 model.eval()
                 history["val"].append({**validate(), "step": step})
-                bar.write(f"step {step}: {report(history['val'][-1])}")
+                if progress:  # --quiet: the history holds the curve, nothing is printed
+                    bar.write(f"step {step}: {report(history['val'][-1])}")
             if cfg.max_minutes is not None and time.monotonic() - start > 60 * cfg.max_minutes:
                 stop = True
                 break
@@ -165,7 +166,13 @@ class Validation:
         self.since = 0  # the step of the previous validation
 
     def _due(self, step: int) -> bool:
-        return self.score is not None and bool(self.cfg.val_arscore_every) and step % self.cfg.val_arscore_every == 0
+        """Whether this validation is the first at or after a multiple of val_arscore_every (the two periods
+        need not divide each other)."""
+        every = self.cfg.val_arscore_every
+        if self.score is None or not every:
+            return False
+        last = max(self.scored, default=0)
+        return step // every > last // every
 
     def __call__(self) -> dict:
         step = len(self.history["train_loss"])
@@ -173,8 +180,9 @@ class Validation:
         recent = self.history["train_loss"][self.since:step]
         m["train_loss_mean"] = float(np.mean(recent)) if recent else None
         self.since = step
-        if self._due(step):
-            self.scored.setdefault(step, self.score(self.model))
+        if step not in self.scored and self._due(step):
+            self.scored[step] = self.score(self.model)
+        if step in self.scored:
             m.update(self.scored[step])
         return m
 

@@ -186,7 +186,8 @@ def test_every_model_takes_the_validation_flags_and_draws_a_curve(data, tmp_path
     assert main(["train", "--model", model, "--data", str(data), "-o", str(out), *tiny, *extra, "--val-data", str(val),
                  "--val-every", "1", "--val-segments", "2", "--val-arscore-every", "2",
                  "--val-arscore-segments", "3"]) == 0
-    capsys.readouterr()
+    quiet = capsys.readouterr()
+    assert not [line for line in (quiet.out + quiet.err).splitlines() if line.startswith("step ")]  # --quiet
     meta = json.loads(out.with_suffix(".json").read_text())
     history = meta["history"]
     assert meta["model"] == model and meta["train_config"]["val_arscore_every"] == 2
