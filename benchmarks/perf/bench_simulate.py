@@ -7,9 +7,9 @@ Each round runs every variant once, in turn (so a loaded machine's drift hits th
 simulate FRAMES_DIR --timestamps T.txt -o OUT.h5 --quiet` as a whole process (start-up, decoding,
 simulation, the written and read-back file), once per --tree (a checkout put first on PYTHONPATH; default:
 the dvsot this Python imports), and esim_py (ESIM's C++ port from rpg_vid2e, contrast 0.2/0.2, eps 1e-3,
-no refractory period: dvsot's defaults) when --esim-python names a Python that imports it (default: this
-one, if it does). esim_py is timed as a process (start-up, import, generateFromFolder, no file written) and
-as its generateFromFolder call alone. Printed per variant: the median frames/s over the rounds, their
+no refractory period: dvsot's defaults) in the Python --esim-python names (an error, exit 2, if it does not
+import esim_py; without the option: this one, if it does). esim_py is timed as a process (start-up,
+import, generateFromFolder, no file written) and as its generateFromFolder call alone. Printed per variant: the median frames/s over the rounds, their
 range, and CPU milliseconds a frame (the child's user + system time); and each dvsot variant's ratio to
 esim_py's frames/s, against the process and against the call.
 
@@ -18,7 +18,8 @@ esim_py's frames/s, against the process and against the call.
 EventEmulator (SensorsINI/v2e, in its own Python, its source first on the path) as a process on the same
 images (read by OpenCV as 8-bit grey), once per preset with the parameters v2e shares with it
 (thresholds, mismatch, cutoff, shot noise, leak rate and spread, refractory period; v2e has no latency,
-readout limit or hot pixels); each dvsot variant's ratio to v2e's frames/s of its preset is printed.
+readout limit or hot pixels); each dvsot variant's ratio to v2e's frames/s of its preset is printed. Both
+options or neither; a v2e that does not import is an error (exit 2) before any round.
 """
 
 from __future__ import annotations
@@ -99,6 +100,14 @@ def _imports_esim(python: str) -> bool:
     return subprocess.run([python, "-c", "import esim_py"], capture_output=True).returncode == 0
 
 
+def _v2e_import_error(python: str, src: str) -> str:
+    """The last line of the error importing v2e's EventEmulator in `python` with `src` on its path ('' if none)."""
+    with tempfile.TemporaryDirectory() as where:
+        done = subprocess.run([python, "-c", "from v2ecore.emulator import EventEmulator"], capture_output=True,
+                              text=True, cwd=where, env={**os.environ, "PYTHONPATH": str(Path(src).resolve())})
+    return "" if done.returncode == 0 else (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
+
+
 def _summary(frames: int, walls: list[float], cpus: list[float]) -> dict:
     med = statistics.median(walls)
     return {"frames_per_s": round(frames / med, 1), "frames_per_s_range": [round(frames / max(walls), 1),
@@ -112,15 +121,22 @@ def main() -> None:
     parser.add_argument("--timestamps", required=True, help="seconds, one per line, one per image")
     parser.add_argument("--runs", type=int, default=3, help="rounds; each runs every variant once")
     parser.add_argument("--tree", action="append", default=[], help="a dvsot checkout to time (repeatable)")
-    parser.add_argument("--esim-python", help="a Python that imports esim_py (default: this one, if it does)")
+    parser.add_argument("--esim-python", help="a Python that imports esim_py (without it: this one, if it does)")
     parser.add_argument("--preset", action="append", default=[], help="a sensor preset to time (repeatable)")
     parser.add_argument("--v2e-python", help="a Python with v2e's requirements, to time v2e too")
     parser.add_argument("--v2e-src", help="v2e's source tree (holds v2ecore/), with --v2e-python")
     args = parser.parse_args()
+    # checked before any round: a reference that cannot run would otherwise fail, or go untimed, after minutes
+    if bool(args.v2e_python) != bool(args.v2e_src):
+        parser.error("--v2e-python and --v2e-src go together")
+    if args.v2e_python and (why := _v2e_import_error(args.v2e_python, args.v2e_src)):
+        parser.error(f"{args.v2e_python} with --v2e-src {args.v2e_src} does not import v2ecore.emulator: {why}")
     presets = args.preset or [None]
     frames = sum(1 for p in Path(args.frames).iterdir() if p.suffix.lower() in {".png", ".jpg", ".tif", ".tiff"})
     esim_python = args.esim_python or sys.executable
     have_esim = _imports_esim(esim_python)
+    if args.esim_python and not have_esim:
+        parser.error(f"--esim-python {args.esim_python} does not import esim_py")
     trees = args.tree or [""]
     walls: dict[str, list[float]] = {}
     cpus: dict[str, list[float]] = {}
