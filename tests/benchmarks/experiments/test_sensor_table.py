@@ -100,10 +100,13 @@ def test_out_holds_one_run_whole(split, tmp_path, monkeypatch, capsys):
     assert table(data, frames, out, "--preset", "ideal", "--preset", "noisy") == 0
     manifest = json.loads((out / "run.json").read_text())
     assert manifest["format"] == "dvsot-run" and "noisy/bench/rct/b.txt" in manifest["files"]
-    # the next run: another preset, one sequence; the previous run's other files go in its commit
-    assert table(data / "a.h5", frames, out, "--preset", "davis346") == 0
-    assert sorted(p.name for p in out.iterdir()) == ["davis346", "run.json", "table.csv", "table.md"]
-    assert not (out / "davis346" / "bench" / "rct" / "b.txt").exists()
+    # the next run: one of the presets, one sequence; the previous run's other files go in its commit (those in
+    # noisy/bench/ too, which the benchmark run nested in this one knows as the previous run's)
+    assert table(data / "a.h5", frames, out, "--preset", "noisy") == 0
+    assert sorted(p.name for p in out.iterdir()) == ["noisy", "run.json", "table.csv", "table.md"]
+    assert sorted(p.name for p in (out / "noisy").iterdir()) == ["a.h5", "bench"]
+    assert (out / "noisy" / "bench" / "rct" / "a.txt").exists()
+    assert not (out / "noisy" / "bench" / "rct" / "b.txt").exists()
     before = _contents(out)
     real, calls = plan.run_benchmark, []
 
@@ -117,7 +120,7 @@ def test_out_holds_one_run_whole(split, tmp_path, monkeypatch, capsys):
     with pytest.raises(KeyboardInterrupt):
         table(data, frames, out, "--preset", "ideal", "--preset", "noisy")
     assert _contents(out) == before  # no new file or directory, no temp, the old files untouched
-    assert sorted(p.name for p in out.iterdir()) == ["davis346", "run.json", "table.csv", "table.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["noisy", "run.json", "table.csv", "table.md"]
     calls.clear()
     with pytest.raises(KeyboardInterrupt):
         table(data, frames, tmp_path / "fresh", "--preset", "ideal", "--preset", "noisy")
@@ -127,3 +130,28 @@ def test_out_holds_one_run_whole(split, tmp_path, monkeypatch, capsys):
     assert table(data, frames, out, "--preset", "ideal") == 2
     err = capsys.readouterr().err
     assert "holds files that are not an earlier run's" in err and "notes.txt" in err and err.count("\n") == 1
+
+
+def test_a_tracker_that_raises_on_a_sequence_is_marked_failed_and_the_exit_status_is_1(split, tmp_path, monkeypatch,
+                                                                                        capsys):
+    import dataclasses
+
+    import benchmarks.evaluation.runner as runner
+
+    data, frames = split
+    real = runner.run_one
+
+    def crashing_on_b(tracker, path, *args, **kwargs):  # as run_one reports a tracker that raised
+        result = real(tracker, path, *args, **kwargs)
+        return dataclasses.replace(result, error="boom") if result.sequence == "b" else result
+
+    monkeypatch.setattr(runner, "run_one", crashing_on_b)
+    out = tmp_path / "out"
+    assert table(data, frames, out, "--preset", "davis346") == 1
+    captured = capsys.readouterr()
+    assert "failed: rct on b under davis346: boom" in captured.err
+    with open(out / "table.csv") as f:
+        rows = {r["sequence"]: r for r in csv.DictReader(f)}
+    assert rows["b"]["davis346_error"] == "boom" and rows["all"]["davis346_error"] == ""
+    assert rows["all"]["davis346_ARscore"] == rows["a"]["davis346_ARscore"]  # pooled over the sequence that ran
+    assert "rct under davis346: failed on b" in (out / "table.md").read_text()
