@@ -86,3 +86,30 @@ def moving_square_file(path: Path, width: int = 160, height: int = 120, size: in
             w.append_boxes(int(round(t * 1e6)), [x, y, size, size])
         w.close(int(round((n - 1) / rate_hz * 1e6)) + 1)
     return path
+
+
+def kept_sequence(directory: Path, width: int = 96, height: int = 72, n: int = 41, name: str = "seq",
+                  frames_dir: Path | None = None, start: tuple[float, float] = (10, 20),
+                  split: str = "test") -> tuple[Path, Path]:
+    """A bright square crossing a textured wall at 1 kHz, as `dvsot generate --keep-frames` leaves it: its luma frames
+    (NNNNNN.npy) in frames_dir (default directory/frames) and its dataset file directory/<name>.h5 (event seed 3)."""
+    from dvsot.pipeline.sequence import write_sequence
+
+    frames_dir = Path(frames_dir) if frames_dir is not None else Path(directory) / "frames"
+    frames_dir.mkdir(parents=True)
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
+    wall = 0.2 + 0.05 * np.sin(0.5 * xx) * np.cos(0.4 * yy)
+    t_us = np.arange(n) * 1000
+    boxes, frames = [], []
+    for i in range(n):
+        xi, yi = int(start[0] + 0.6 * i), int(start[1] + 0.2 * i)
+        f = wall.copy()
+        f[yi:yi + 16, xi:xi + 16] = 0.8 + 0.1 * np.sin(xx[yi:yi + 16, xi:xi + 16])
+        np.save(frames_dir / f"{i:06d}.npy", f)
+        frames.append(f)
+        boxes.append([xi, yi, 16, 16])
+    box = np.array(boxes, np.float32)
+    sim = EventSimulator(width, height, EventParams(), 3)
+    path, _ = write_sequence(Path(directory) / f"{name}.h5", frames, t_us, sim,
+                             {"name": name, "split": split, "event_seed": 3}, 10_000, boxes=lambda: (t_us, box, box))
+    return path, frames_dir

@@ -134,6 +134,17 @@ def _output_names(protocol: str, plots: bool, videos: Sequence[str], energy: boo
     return {name: _WHO_ASKS[kind] for name, kind in names.items()}
 
 
+def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str = "ar", plots: bool = False,
+              videos: Sequence[str] = (), energy: bool = True) -> list[str]:
+    """Every path (relative to --out) a run of these trackers on these sequences may write: the report's files
+    (the energy table's only when a tracker of CHECKPOINT_TRACKERS runs) and the per-sequence files."""
+    from benchmarks.analysis.sequence_files import per_sequence_files
+
+    energy = energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
+    return [*_output_names(protocol, plots, videos, energy),
+            *(str(p) for p in per_sequence_files(list(trackers), sequences, protocol))]
+
+
 def check_video(sequence: str, path: Path) -> None:
     """UserError now if the preview of a sequence would hold more frames in memory than dvsot.limits allows."""
     from benchmarks.analysis.report import VIDEO_SEGMENTS
@@ -172,7 +183,6 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
     from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.errors import UserError
-    from benchmarks.analysis.sequence_files import per_sequence_files
     from dvsot.dataset.safe_names import file_stem
     from dvsot.runtime.outputs import output_dir, run_dir
     from dvsot.limits import MAX_WORKERS, range_problem
@@ -229,7 +239,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
     # every path under --out, checked now; --out holds this run's files only (benchmarks.analysis.report)
-    run_dir(out_dir, "--out", [*_output_names(protocol, plots, videos, energy), *per_sequence_files(trackers, sequences, protocol)])
+    run_dir(out_dir, "--out", run_files(trackers, sequences, protocol, plots, videos, energy))
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, option_specs)
     if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint

@@ -24,7 +24,6 @@ interrupted or failed run leaves OUT as it was, and an OUT that holds other file
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
 import sys
 import time
@@ -43,7 +42,6 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     times and boxes; the sequence's event seed unless `seed` is given); {events, noise_events, noise_hz
     (measured, per pixel per second), duration_s, seed}."""
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
     from dvsot.events import EventParams, EventSimulator
     from dvsot.pipeline.sequence import write_sequence
     from dvsot.runtime.outputs import readable
@@ -51,9 +49,7 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     with Dataset(sequence) as ds:
         track, attrs = ds.boxes(), dict(ds.attrs)
         width, height, segment_us, duration_us = ds.width, ds.height, ds.segment_us, ds.duration_us
-    files = sorted(Path(frames_dir).glob("*.npy"))
-    if len(files) != len(track.t):
-        raise UserError(f"{frames_dir}: {len(files)} frames (.npy), but {sequence} has {len(track.t)} render samples")
+    files = kept_frames(sequence, frames_dir, len(track.t))
     params = EventParams.parse(values, "robustness variant")
     if seed is None:
         seed = int(attrs.get("event_seed", attrs.get("seed", 0)))
@@ -71,6 +67,22 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     seconds = max(int(track.t[-1]) + 1, duration_us) / 1e6
     return {"events": counts.events, "noise_events": noise, "noise_hz": noise / (width * height) / seconds,
             "duration_s": seconds, "seed": seed}
+
+
+def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | None = None) -> list[Path]:
+    """The kept frames of a sequence (FRAMES_DIR/NNNNNN.npy, in order); UserError unless there is one per render
+    sample of the sequence (`samples`, else read from its /boxes)."""
+    from dvsot.errors import UserError
+
+    if samples is None:
+        from dvsot.dataset import Dataset
+
+        with Dataset(sequence) as ds:
+            samples = len(ds.boxes().t)
+    files = sorted(Path(frames_dir).glob("*.npy"))
+    if len(files) != samples:
+        raise UserError(f"{frames_dir}: {len(files)} frames (.npy), but {sequence} has {samples} render samples")
+    return files
 
 
 def variant_name(preset: str, rate: float | None) -> str:
@@ -135,33 +147,40 @@ def run(sequence: str | Path, frames_dir: str | Path, trackers: list[str], prese
         seeds: list[int] | None = None, picture_segment: int | None = None) -> list[dict]:
     """A whole sweep into out_dir as one run (see the module docstring): OUT checked first (UserError if it holds
     other files), every file staged, all renamed into place together with the manifest at the end; the rows."""
-    from dvsot.errors import UserError
-    from dvsot.runtime.outputs import readable, run_dir, run_outputs
+    from dvsot.runtime.outputs import owned_run, readable
 
     out = Path(out_dir)
-    run_dir(out, "--out", output_names(presets, noise_hz, seeds, picture_segment is not None), MANIFEST)
-    made = not out.exists()
-    try:
-        with run_outputs(out / MANIFEST, whole=True):
-            rows = sweep(sequence, frames_dir, trackers, presets, noise_hz, out, max_segments, jobs, seeds)
-            write_outputs(rows, trackers, out, Path(sequence).stem)
-            if picture_segment is not None:
-                from benchmarks.analysis.pictures import plot_segment_side_by_side
-
-                first = {}
-                for row in rows:
-                    first.setdefault(row["variant"], readable(out / row["file"]))
-                try:
-                    plot_segment_side_by_side(first, picture_segment, out / PICTURE_FILE,
-                                              title=f"{Path(sequence).stem}, segment {picture_segment}")
-                except ValueError as exc:
-                    raise UserError(str(exc)) from None
-    except BaseException:
-        if made:  # the directory this run made for its staged files: nothing of the run stays
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        raise
+    with owned_run(out, "--out", output_names(presets, noise_hz, seeds, picture_segment is not None), MANIFEST):
+        rows = sweep(sequence, frames_dir, trackers, presets, noise_hz, out, max_segments, jobs, seeds)
+        write_outputs(rows, trackers, out, Path(sequence).stem)
+        if picture_segment is not None:
+            first = {}
+            for row in rows:
+                first.setdefault(row["variant"], readable(out / row["file"]))
+            picture(first, picture_segment, out / PICTURE_FILE, f"{Path(sequence).stem}, segment {picture_segment}")
     return rows
+
+
+def check_segment(sequence: str | Path, segment: int, flag: str) -> None:
+    """UserError naming the flag unless `segment` is a segment of the dataset file `sequence`."""
+    from dvsot.dataset import Dataset
+    from dvsot.errors import UserError
+
+    with Dataset(sequence) as ds:
+        if not 0 <= segment < ds.num_segments:
+            raise UserError(f"{flag}: {segment} is not a segment of {sequence} (0..{ds.num_segments - 1})")
+
+
+def picture(files: dict[str, Path], segment: int, out_png: Path, title: str) -> Path:
+    """One segment's events in each of the files side by side ({panel label: dataset file}); UserError if a file
+    does not have that segment or the files' sensors differ."""
+    from benchmarks.analysis.pictures import plot_segment_side_by_side
+    from dvsot.errors import UserError
+
+    try:
+        return plot_segment_side_by_side(files, segment, out_png, title=title)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
 
 
 def summarise(rows: list[dict], trackers: list[str]) -> list[dict]:
@@ -278,12 +297,7 @@ def main() -> None:
 
     try:
         if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run
-            from dvsot.dataset import Dataset
-
-            with Dataset(args.sequence) as ds:
-                if not 0 <= args.picture_segment < ds.num_segments:
-                    raise UserError(f"--picture-segment: {args.picture_segment} is not a segment of {args.sequence} "
-                                    f"(0..{ds.num_segments - 1})")
+            check_segment(args.sequence, args.picture_segment, "--picture-segment")
         out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
         run(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
             args.max_segments, args.jobs, args.event_seed, args.picture_segment)

@@ -14,7 +14,9 @@
   previous run's manifest names and this run does not write is removed in the same commit;
   `run_dir(root, flag, writes)` checks before any work that the directory holds no one else's files and
   that every path the run writes under it can be made (no file where a directory goes), and removes
-  the temps dead processes left anywhere in it.
+  the temps dead processes left anywhere in it; `run_dir` inside an open whole run also knows that run's
+  previous files (a run nested in another's tree, as a benchmark inside an experiment's output).
+  `owned_run(root, flag, writes)`: both, and a failed run's new directories removed with its staged files.
 * A symlink given as an output is written through: the temp goes beside the link's target and the
   rename replaces the target; the link stays.
 * Writing errors from the operating system (a full disk, a file system gone read-only) become one
@@ -152,6 +154,13 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
         if d != str(root):
             check_writable(d, f"{d}: {flag}")
     known = previous_files(root / manifest) | {str(r) for r in rel} | {manifest}
+    outer = current_run()
+    if outer is not None and outer.whole:  # inside a run that owns a tree around root: its previous files are known
+        home = os.path.realpath(target(outer.manifest).parent)
+        for name in previous_files(outer.manifest):
+            r = os.path.relpath(os.path.join(home, name), os.path.realpath(root))
+            if r.split(os.sep)[0] != os.pardir:
+                known.add(r)
     strangers = []
     for d, dirs, files in os.walk(root):
         for name in files + [x for x in dirs if os.path.islink(os.path.join(d, x))]:
@@ -381,6 +390,27 @@ def run_outputs(manifest: str | os.PathLike | None = None, whole: bool = False) 
         if token is not None:
             _current.reset(token)
         run.abort()
+
+
+@contextmanager
+def owned_run(root: str | Path, flag: str, writes: Iterable[str | Path],
+              manifest: str = "run.json") -> Iterator[RunOutputs]:
+    """One run that owns the directory `root` whole: `run_dir`'s checks first (UserError before any work), then
+    `run_outputs(root / manifest, whole=True)`. A block that raises leaves root as it was: the staged files go
+    and so do the directories the block made (empty once they are gone), root itself and its parents included."""
+    root = Path(root)
+    run_dir(root, flag, writes, manifest)
+    missing = [p for p in [root, *root.parents] if not p.exists()]  # made by the run's first mkdir, if any
+    before = {d for d, _, _ in os.walk(root)}
+    try:
+        with run_outputs(root / manifest, whole=True) as run:
+            yield run
+    except BaseException:
+        made = [d for d, _, _ in os.walk(root) if d not in before]
+        for d in sorted(made, key=lambda d: d.count(os.sep), reverse=True) + [str(p) for p in missing]:
+            with contextlib.suppress(OSError):  # a directory that is not empty was not this run's alone: it stays
+                os.rmdir(d)
+        raise
 
 
 @contextmanager

@@ -7,33 +7,7 @@ import csv
 import numpy as np
 import pytest
 
-from dvsot.events import EventParams, EventSimulator
-from dvsot.pipeline.sequence import write_sequence
-
-
-def kept_sequence(tmp_path, width=96, height=72, n=41):
-    """A bright square crossing a textured wall at 1 kHz: its frames kept as .npy and its dataset file."""
-    frames_dir = tmp_path / "frames"
-    frames_dir.mkdir()
-    yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
-    wall = 0.2 + 0.05 * np.sin(0.5 * xx) * np.cos(0.4 * yy)
-    t_us = np.arange(n) * 1000
-    boxes = []
-    frames = []
-    for i in range(n):
-        x, y = 10 + 0.6 * i, 20 + 0.2 * i
-        f = wall.copy()
-        xi, yi = int(x), int(y)
-        f[yi:yi + 16, xi:xi + 16] = 0.8 + 0.1 * np.sin(xx[yi:yi + 16, xi:xi + 16])
-        np.save(frames_dir / f"{i:06d}.npy", f)
-        frames.append(f)
-        boxes.append([xi, yi, 16, 16])
-    boxes = np.array(boxes, np.float32)
-    sim = EventSimulator(width, height, EventParams(), 3)
-    path, _ = write_sequence(tmp_path / "seq.h5", frames, t_us, sim, {"name": "seq", "split": "test",
-                                                                      "event_seed": 3}, 10_000,
-                             boxes=lambda: (t_us, boxes, boxes))
-    return path, frames_dir
+from tests.synthetic import kept_sequence
 
 
 def test_sweep_tables_arscore_per_tracker_against_the_noise_rate(tmp_path):

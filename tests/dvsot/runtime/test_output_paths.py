@@ -165,3 +165,46 @@ def test_a_staged_output_is_read_at_its_temp_until_the_commit(tmp_path):
         assert not out.exists() and readable(out).read_text() == "new"
         assert readable(tmp_path / "b.txt") == tmp_path / "b.txt"  # not this run's
     assert readable(out) == out and out.read_text() == "new"
+
+
+def test_an_owned_run_that_fails_leaves_no_directory_it_made(tmp_path):
+    from dvsot.runtime.outputs import owned_run, replacing
+
+    root = tmp_path / "a" / "out"
+    with pytest.raises(RuntimeError):
+        with owned_run(root, "--out", ["x/y/f.txt"]):
+            (root / "x" / "y").mkdir(parents=True)
+            with replacing(root / "x" / "y" / "f.txt") as tmp:
+                tmp.write_text("staged")
+            raise RuntimeError("the run fails")
+    assert list(tmp_path.iterdir()) == []  # root and its parent a/ were this run's
+    # in a directory that was there: only the directories the run made go
+    root.mkdir(parents=True)
+    (root / "old").mkdir()
+    with pytest.raises(RuntimeError):
+        with owned_run(root, "--out", ["x/f.txt"]):
+            (root / "x").mkdir()
+            raise RuntimeError("the run fails")
+    assert sorted(p.name for p in root.iterdir()) == ["old"]
+
+
+def test_a_run_nested_in_an_owned_tree_knows_the_previous_runs_files(tmp_path):
+    from dvsot.runtime.outputs import owned_run, replacing, run_dir
+
+    root = tmp_path / "out"
+
+    def write(names):
+        with owned_run(root, "--out", names):
+            run_dir(root / "inner", "--inner", [n.removeprefix("inner/") for n in names if n.startswith("inner/")])
+            for n in names:
+                (root / n).parent.mkdir(parents=True, exist_ok=True)
+                with replacing(root / n) as tmp:
+                    tmp.write_text(n)
+
+    write(["inner/a.txt", "inner/b.txt", "top.txt"])
+    write(["inner/a.txt", "top.txt"])  # inner/b.txt: the outer run's previous file, not a stranger, and gone now
+    assert sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()) == [
+        "inner/a.txt", "run.json", "top.txt"]
+    (root / "inner" / "mine.txt").write_text("mine")
+    with pytest.raises(UserError, match="mine.txt"):
+        write(["inner/a.txt", "top.txt"])
