@@ -120,21 +120,31 @@ def front_end_pass(L, out, lp1, lp2, linlog_intensity, log_eps, order, dt_over_t
         before = lp1[i] if direct else 0.0  # lp1 is empty without a low-pass
         v = _front_end_pixel(i, L[i], lp1, lp2, False, knee_log, knee_slope, linlog_intensity, log_eps, order,
                              dt_over_tau, dark)
-        if noisy:
-            v = v + photo[i]
-        if not direct:
-            out[i] = v
+        v, n, k = _candidate(i, v, before, direct, noisy, photo, out, last, lo_log, hi_log, base, off, cp, cn, cand,
+                             l1c, l0c, n)
         finite &= abs(v) < np.inf  # False for NaN too
-        if (v >= hi_log[i]) | (v <= lo_log[i]):
-            v0 = before if direct else last[i]
-            k = crossed(i, v, v0, base, off, cp, cn)
-            if k:
-                cand[n] = i
-                l1c[n] = v
-                l0c[n] = v0
-                n += 1
-                bound += k
+        bound += k
     return finite, n, bound
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _candidate(i, v, before, direct, noisy, photo, out, last, lo_log, hi_log, base, off, cp, cn, cand, l1c, l0c, n):
+    """The fused passes' step after a pixel's front end: photo's noise added, the output kept, and the pixel put in
+    cand if it crosses a level (kernel.crossed past the log bounds): (its value, candidates so far, its levels)."""
+    if noisy:
+        v = v + photo[i]
+    if not direct:
+        out[i] = v
+    k = 0
+    if (v >= hi_log[i]) | (v <= lo_log[i]):
+        v0 = before if direct else last[i]
+        k = crossed(i, v, v0, base, off, cp, cn)
+        if k:
+            cand[n] = i
+            l1c[n] = v
+            l0c[n] = v0
+            n += 1
+    return v, n, k
 
 
 def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.ndarray:
@@ -207,19 +217,9 @@ def coded_front_end_pass(codes, plog, inten01, out, lp1, lp2, order, dt_over_tau
     for i in range(codes.shape[0]):
         before = lp1[i] if direct else 0.0  # lp1 is empty without a low-pass
         v = _coded_pixel(i, codes[i], plog, inten01, lp1, lp2, False, order, dt_over_tau)
-        if noisy:
-            v = v + photo[i]
-        if not direct:
-            out[i] = v
-        if (v >= hi_log[i]) | (v <= lo_log[i]):
-            v0 = before if direct else last[i]
-            k = crossed(i, v, v0, base, off, cp, cn)
-            if k:
-                cand[n] = i
-                l1c[n] = v
-                l0c[n] = v0
-                n += 1
-                bound += k
+        _, n, k = _candidate(i, v, before, direct, noisy, photo, out, last, lo_log, hi_log, base, off, cp, cn, cand,
+                             l1c, l0c, n)
+        bound += k
     return n, bound
 
 
