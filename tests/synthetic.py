@@ -90,7 +90,8 @@ def moving_square_file(path: Path, width: int = 160, height: int = 120, size: in
 
 def kept_sequence(directory: Path, width: int = 96, height: int = 72, n: int = 41, name: str = "seq",
                   frames_dir: Path | None = None, start: tuple[float, float] = (10, 20),
-                  split: str = "test") -> tuple[Path, Path]:
+                  split: str = "test", params: EventParams | None = None,
+                  record_settings: bool = True) -> tuple[Path, Path]:
     """A bright square crossing a textured wall at 1 kHz, as `dvsot generate --keep-frames` leaves it: its luma frames
     (NNNNNN.npy) in frames_dir (default directory/frames) and its dataset file directory/<name>.h5 (event seed 3)."""
     from dvsot.pipeline.sequence import write_sequence
@@ -109,7 +110,11 @@ def kept_sequence(directory: Path, width: int = 96, height: int = 72, n: int = 4
         frames.append(f)
         boxes.append([xi, yi, 16, 16])
     box = np.array(boxes, np.float32)
-    sim = EventSimulator(width, height, EventParams(), 3)
-    path, _ = write_sequence(Path(directory) / f"{name}.h5", frames, t_us, sim,
-                             {"name": name, "split": split, "event_seed": 3}, 10_000, boxes=lambda: (t_us, box, box))
+    params = params if params is not None else EventParams()
+    sim = EventSimulator(width, height, params, 3)
+    attrs = {"name": name, "split": split, "event_seed": 3}
+    if record_settings:
+        attrs["simulator"] = params.model_dump()
+    path, _ = write_sequence(Path(directory) / f"{name}.h5", frames, t_us, sim, attrs, 10_000,
+                             boxes=lambda: (t_us, box, box))
     return path, frames_dir

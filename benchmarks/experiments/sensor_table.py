@@ -6,7 +6,8 @@
 
 Every sequence of the split in --data needs its rendered frames in FRAMES/<name>/ (`dvsot generate SCENES
 --out-dir DATA --keep-frames FRAMES`: one NNNNNN.npy per render sample); a sequence without them is an error
-naming it. Under each --preset (the preset's own fields, with the sequence's own event seed:
+naming it. Under each --preset (the preset's own fields, or with `as-rendered` the settings the sequence's file
+records, its scene's `events:` included; always with the sequence's own event seed:
 benchmarks.experiments.robustness.resimulate) a sequence's frames become OUT/<preset>/<name>.h5, and `dvsot
 bench`'s run (benchmarks.evaluation.plan.run_benchmark, AR protocol, the same trackers and options under every
 preset) writes its report into OUT/<preset>/bench/. OUT/table.md: one row per tracker, its ARscore, A and R
@@ -38,6 +39,7 @@ MANIFEST = "run.json"  # the run's manifest in OUT (dvsot.runtime.outputs)
 TABLE_FILES = ("table.md", "table.csv")
 PICTURE_FILE = "segment.png"  # as robustness.py names its picture
 BENCH_DIR = "bench"  # OUT/<preset>/bench/: `dvsot bench`'s report of that preset's files
+AS_RENDERED = "as-rendered"  # the --preset word for each sequence's own simulator settings, as its file records them
 METRICS = ("ARscore", "A", "R")  # a preset's columns in table.md, in this order
 
 
@@ -105,6 +107,22 @@ def kept_frame_dirs(sequences: dict[str, Path], frames: str | Path) -> dict[str,
     return dirs
 
 
+def recorded_settings(sequence: str | Path) -> dict:
+    """The simulator settings a dataset file was made with (its `simulator` attribute: EventParams' fields, thresholds
+    in log units, rates in Hz, times in microseconds); UserError naming the file if it records none."""
+    from dvsot.dataset import Dataset
+    from dvsot.errors import UserError
+    from dvsot.events import EventParams
+
+    with Dataset(sequence) as ds:
+        settings = ds.attrs.get("simulator")
+    if not isinstance(settings, dict):
+        raise UserError(f"{sequence}: --preset {AS_RENDERED}: the file records no simulator settings (attribute "
+                        f"'simulator'); name a preset instead")
+    EventParams.parse(settings, f"{sequence}: simulator")
+    return dict(settings)
+
+
 def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out_dir: str | Path,
         data: Sequence[str] | None = None, split: str = "test", checkpoint: str | None = None,
         options: Sequence[str] = (), max_segments: int | None = None, jobs: int | None = None, energy: bool = True,
@@ -121,8 +139,12 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
     if not presets:
         raise UserError("--preset: give at least one sensor preset")
     for p in presets:
-        EventParams.parse({"preset": p}, f"--preset {p}")
+        if p != AS_RENDERED:
+            EventParams.parse({"preset": p}, f"--preset {p}")
     sequences = resolve_data(data, split)
+    if AS_RENDERED in presets:
+        for source in sequences.values():
+            recorded_settings(source)
     dirs = kept_frame_dirs(sequences, frames)
     files = preset_files(presets, list(sequences))
     if picture is not None:
@@ -144,7 +166,8 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
             (out / p).mkdir(parents=True, exist_ok=True)
             table.events[p] = {}
             for name, source in sequences.items():
-                table.events[p][name] = resimulate(source, dirs[name], out / files[p][name], {"preset": p})
+                values = recorded_settings(source) if p == AS_RENDERED else {"preset": p}
+                table.events[p][name] = resimulate(source, dirs[name], out / files[p][name], values)
                 if progress:
                     print(f"sensor_table: {p}: {name}: {table.events[p][name]['events']:,} events",
                           file=sys.stderr, flush=True)
@@ -255,8 +278,8 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"dataset files, directories or globs (default: {DEFAULT_DATA})")
     parser.add_argument("--frames", required=True, help="the kept frames: FRAMES/<sequence name>/NNNNNN.npy")
     parser.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
-    parser.add_argument("--preset", action="append", required=True, choices=list(PRESETS),
-                        help="sensor preset (repeatable)")
+    parser.add_argument("--preset", action="append", required=True, choices=[*PRESETS, AS_RENDERED],
+                        help=f"sensor preset (repeatable); {AS_RENDERED}: each file's own simulator settings")
     parser.add_argument("--tracker", action="append", required=True, metavar="NAME", help="tracker (repeatable)")
     parser.add_argument("--checkpoint", help="checkpoint of the run's sctn, sctn_ann or siamfc (as `dvsot bench`)")
     parser.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",

@@ -155,3 +155,33 @@ def test_a_tracker_that_raises_on_a_sequence_is_marked_failed_and_the_exit_statu
     assert rows["b"]["davis346_error"] == "boom" and rows["all"]["davis346_error"] == ""
     assert rows["all"]["davis346_ARscore"] == rows["a"]["davis346_ARscore"]  # pooled over the sequence that ran
     assert "rct under davis346: failed on b" in (out / "table.md").read_text()
+
+
+def test_as_rendered_re_simulates_each_file_with_its_own_settings(tmp_path, capsys):
+    """A split made with a scene's own thresholds: `ideal` is the preset's fields, `as-rendered` the file's, whose
+    table is `dvsot bench`'s on the split itself; a file that records no settings is refused naming it."""
+    from benchmarks.evaluation.plan import run_benchmark
+    from dvsot.dataset import Dataset
+    from dvsot.events import EventParams
+
+    data, frames = tmp_path / "data", tmp_path / "frames"
+    data.mkdir()
+    own = EventParams.parse({"preset": "ideal", "cp": 0.3, "cn": 0.35, "refractory_us": 500}, "scene")
+    path, _ = kept_sequence(data, n=31, name="a", frames_dir=frames / "a", params=own)
+    out = tmp_path / "out"
+    assert table(data, frames, out, "--preset", "ideal", "--preset", "as-rendered") == 0
+    with open(out / "table.csv") as f:
+        rows = list(csv.DictReader(f))
+    with Dataset(path) as ds:
+        assert int(rows[1]["as-rendered_events"]) == ds.num_events != int(rows[1]["ideal_events"])
+    bench = run_benchmark(["rct"], [str(data)], "test", tmp_path / "bench", 1, max_segments=3, progress=False)
+    for metric in ("A", "R", "ARscore"):
+        assert float(rows[0][f"as-rendered_{metric}"]) == pytest.approx(bench.summary["rct"]["all"][metric], abs=1e-4)
+    capsys.readouterr()
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    path, _ = kept_sequence(bare, n=31, name="a", frames_dir=tmp_path / "bare_frames" / "a", record_settings=False)
+    assert table(bare, tmp_path / "bare_frames", tmp_path / "out2", "--preset", "as-rendered") == 2
+    err = capsys.readouterr().err
+    assert "records no simulator settings" in err and str(path) in err and err.count("\n") == 1, err
+    assert not (tmp_path / "out2").exists()
