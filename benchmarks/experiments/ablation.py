@@ -57,6 +57,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "calibration": ({"init": "calibrate"}, {}, {}),
     "init_fluctuation": ({"init": "fluctuation"}, {}, {}),
     "error_time_max": ({"error_time": "max"}, {}, {"error_time": "max"}),
+    "lr_cosine": ({"lr_schedule": "cosine"}, {}, {}),  # the paper gives no schedule: constant, or cosine to 0
     "finetune_balanced": ({}, {}, {"finetune_balanced": True}),
     "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
     "finetune_on_reinit": ({}, {}, {"finetune_on_reinit": True}),

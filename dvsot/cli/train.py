@@ -34,6 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--batch-segments", type=int, default=None,
                    help="segments per step (sctn: 60 samples each, default 4; siamfc: pairs, default 8)")
     p.add_argument("--lr", type=float, default=None, help="default: the model's (sctn 2e-3, siamfc 1e-3)")
+    p.add_argument("--lr-schedule", choices=["constant", "cosine"], default=None,
+                   help="constant (default) or cosine: from --lr to 0 over the planned steps (an ablation row)")
     p.add_argument("--loss", choices=["exp", "linear", "basic"], default=None, help="default exp (sctn, sctn_ann)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-minutes", type=float, default=None, help="stop after this much training time")
@@ -120,8 +122,9 @@ def _train_config(args: argparse.Namespace):
         if getattr(args, dest) is not None and args.model not in models:
             raise UserError(f"--{dest.replace('_', '-')}: not a setting of --model {args.model} "
                             f"(only of {', '.join(models)})")
-    common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr", "val_every",
-                                            "val_segments", "val_arscore_every") if getattr(args, k) is not None}
+    common = {k: getattr(args, k) for k in ("epochs", "segments_per_epoch", "batch_segments", "lr", "lr_schedule",
+                                            "val_every", "val_segments", "val_arscore_every")
+              if getattr(args, k) is not None}
     common.update(seed=args.seed, max_minutes=args.max_minutes)
     try:
         if args.model == "siamfc":

@@ -5,7 +5,8 @@ loop over epochs (batches, validation every `val_every` steps, the `max_minutes`
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, Sequence
+import math
+from typing import Any, Callable, Literal, Sequence
 
 import numpy as np
 import torch
@@ -36,6 +37,8 @@ class TrainBudget(Strict):
     segments_per_epoch: int | None = Field(400, ge=1)
     batch_segments: int = Field(4, ge=1)
     lr: float = Field(2e-3, gt=0, le=MAX_LEARNING_RATE)  # checked here: Adam's own ValueError on a NaN rate would look like a data problem
+    # the paper gives none: constant (the default) or cosine, from lr to 0 over the planned steps (an ablation row)
+    lr_schedule: Literal["constant", "cosine"] = "constant"
     seed: int = Field(0, ge=0, lt=2**63 - 1)  # numpy seeds are non-negative, torch's fit in int64 (seed + 1 is used)
     min_box_px: float = Field(8.0, ge=0)
     val_every: int = Field(50, ge=1)
@@ -99,6 +102,14 @@ def spread(items: Sequence, n: int) -> list:
     return [items[i] for i in np.linspace(0, len(items) - 1, min(n, len(items))).astype(int)]
 
 
+def lr_factor(schedule: str, step: int, planned: int) -> float:
+    """The learning rate of step `step` (0-based) over the configured one: 1 for constant; for cosine
+    (1 + cos(pi step / planned)) / 2, from 1 at the first step towards 0 at the last of `planned` steps."""
+    if schedule == "constant":
+        return 1.0
+    return 0.5 * (1.0 + math.cos(math.pi * min(step, planned) / max(planned, 1)))
+
+
 def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg: TrainBudget,
         rng: np.random.Generator, batch_loss: Callable[[list], tuple[torch.Tensor, dict[str, float]]],
         validate: Callable[[], dict] | None, report: Callable[[dict], str], history: dict,
@@ -115,7 +126,9 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
     start = time.monotonic()
     step = 0
     per_epoch = min(len(items), cfg.segments_per_epoch or len(items))
-    bar = tqdm(total=cfg.epochs * (per_epoch // cfg.batch_segments), unit="batch", disable=not progress, desc=desc)
+    planned = cfg.epochs * (per_epoch // cfg.batch_segments)
+    schedule = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: lr_factor(cfg.lr_schedule, k, planned))
+    bar = tqdm(total=planned, unit="batch", disable=not progress, desc=desc)
     stop = False
     for epoch in range(cfg.epochs):
         order = rng.permutation(len(items))[:per_epoch]
@@ -129,6 +142,7 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
             opt.zero_grad()
             loss.backward()
             opt.step()
+            schedule.step()
             history["train_loss"].append(float(loss.detach()))
             for key, value in extra.items():
                 history.setdefault(key, []).append(value)
