@@ -142,9 +142,7 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
         if p != AS_RENDERED:
             EventParams.parse({"preset": p}, f"--preset {p}")
     sequences = resolve_data(data, split)
-    if AS_RENDERED in presets:
-        for source in sequences.values():
-            recorded_settings(source)
+    recorded = {name: recorded_settings(source) for name, source in sequences.items()} if AS_RENDERED in presets else {}
     dirs = kept_frame_dirs(sequences, frames)
     files = preset_files(presets, list(sequences))
     if picture is not None:
@@ -166,7 +164,7 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
             (out / p).mkdir(parents=True, exist_ok=True)
             table.events[p] = {}
             for name, source in sequences.items():
-                values = recorded_settings(source) if p == AS_RENDERED else {"preset": p}
+                values = recorded[name] if p == AS_RENDERED else {"preset": p}
                 table.events[p][name] = resimulate(source, dirs[name], out / files[p][name], values)
                 if progress:
                     print(f"sensor_table: {p}: {name}: {table.events[p][name]['events']:,} events",
