@@ -41,9 +41,22 @@ def layout_note(cfg: NetworkConfig) -> str | None:
     return ("not the paper preset: " + ", ".join(ways)) if ways else None
 
 
+# The SCTN checkpoints shipped with the package, by name; each one's .json says how it was made.
+# "dvsot21": the paper's row, trained on Table 1's four training scenes (the default);
+# "varied": the same recipe on those four plus four scenes of blender_scenes/templates/dvsot21_varied.yaml.
+SHIPPED = {"dvsot21": "sctn_dvsot21.pt", "varied": "sctn_dvsot21_varied.pt"}
+
+
+def shipped_checkpoint_path(name: str = "dvsot21") -> Path:
+    """The file of a shipped SCTN checkpoint by its name in SHIPPED; UserError naming the choices otherwise."""
+    if name not in SHIPPED:
+        raise UserError(f"{name!r}: no shipped SCTN checkpoint of that name (choose from {', '.join(SHIPPED)})")
+    return CHECKPOINT_DIR / SHIPPED[name]
+
+
 def default_checkpoint_path() -> Path:
-    """The checkpoint shipped with the package (trained by `dvsot train` on the DVSOT21-style training split)."""
-    return CHECKPOINT_DIR / "sctn_dvsot21.pt"
+    """The default shipped checkpoint: the paper's row, trained by `dvsot train` on the DVSOT21-style training split."""
+    return shipped_checkpoint_path("dvsot21")
 
 
 def metadata_path(path: str | os.PathLike) -> Path:

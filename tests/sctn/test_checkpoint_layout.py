@@ -28,22 +28,30 @@ def test_legacy_checkpoint_loads_with_a_note_naming_the_file(tmp_path):
         load_checkpoint(tmp_path / "new.pt")
 
 
-def test_shipped_checkpoint_is_the_paper_preset_and_silent_on_an_empty_input():
+@pytest.mark.parametrize("name", ["dvsot21", "varied"])
+def test_shipped_checkpoint_is_the_paper_preset_and_silent_on_an_empty_input(name):
     import warnings
 
-    from sctn.checkpoint import load_checkpoint
+    from sctn.checkpoint import load_checkpoint, shipped_checkpoint_path
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        model, meta = load_checkpoint(None)
-    # no legacy-layout note; one line saying it was trained with the old error-time rule (no error_time recorded)
-    assert [type(w.message).__name__ for w in caught] == ["TrainingRuleWarning"]
-    assert "sctn_dvsot21.pt: trained with the old error-time rule" in str(caught[0].message)
-    assert "\n" not in str(caught[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # today's layout, rule and initialisation: loads without a note
+        model, meta = load_checkpoint(shipped_checkpoint_path(name))
     assert model.cfg.steps == 10 and model.cfg.tail_steps == 0 and not model.cfg.bias
     cfg = meta["train_config"]
     assert cfg["loss"] == "exp" and not cfg["squared_error"] and not cfg["background_term"]
-    assert cfg["ops_penalty"] == 0 and not cfg["calibrate"]
+    # keys a run's .json lacks were not settings yet when it was written: their default then is today's
+    assert cfg["ops_penalty"] == 0 and not cfg.get("calibrate", False)
+    assert cfg["error_time"] == "stca" and cfg["init"] == "kaiming" and cfg.get("lr_schedule", "constant") == "constant"
     with torch.no_grad():
         volts, spikes = model.forward_record(torch.zeros(2, 10, 2, 107, 107))
     assert [float(s.sum()) for s in spikes] == [0.0] * 7 and float(volts.abs().max()) == 0.0
+
+
+def test_an_unknown_shipped_name_is_refused_naming_the_choices():
+    from dvsot.errors import UserError
+    from sctn.checkpoint import SHIPPED, shipped_checkpoint_path
+
+    assert all(shipped_checkpoint_path(name).is_file() for name in SHIPPED)
+    with pytest.raises(UserError, match=r"'nope': no shipped SCTN checkpoint of that name \(choose from dvsot21, varied\)"):
+        shipped_checkpoint_path("nope")

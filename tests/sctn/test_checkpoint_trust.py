@@ -14,7 +14,7 @@ import torch
 from dvsot.cli import main
 from dvsot.errors import RunError, UserError
 from sctn.checkpoint import (DIGEST_KEY, UndigestedCheckpointWarning, default_checkpoint_path, load_checkpoint,
-                             metadata_path, save_checkpoint, weights_digest)
+                             metadata_path, save_checkpoint, shipped_checkpoint_path, weights_digest)
 from sctn.network import SCTN, NetworkConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -30,7 +30,14 @@ def shipped() -> list[tuple[Path, str]]:
     from benchmarks.trackers.siamfc.model import default_siamfc_path
     from sctn.ann import default_twin_path
 
-    return [(default_checkpoint_path(), "sctn"), (default_twin_path(), "sctn_ann"), (default_siamfc_path(), "siamfc")]
+    return [(default_checkpoint_path(), "sctn"), (shipped_checkpoint_path("varied"), "sctn"),
+            (default_twin_path(), "sctn_ann"), (default_siamfc_path(), "siamfc")]
+
+
+# the shipped SiamFC was written before digests: its .json holds the digest of its unchanged weights; the others
+# were written with the digest in the .pt itself
+DIGEST_IN_PT = {"sctn_dvsot21.pt": True, "sctn_dvsot21_varied.pt": True, "sctn_ann_dvsot21.pt": True,
+                "siamfc_dvsot21.pt": False}
 
 
 def bench_refuses(tmp_path, capsys, ckpt: Path, words: list[str]) -> None:
@@ -127,20 +134,26 @@ def test_a_diverging_training_stops_with_one_line_and_writes_nothing(data, tmp_p
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("index", range(3))
-def test_shipped_checkpoints_load_checked_and_a_copy_without_its_json_loads_with_a_note(index, tmp_path):
-    """Each shipped .pt matches the digest its .json states; alone (no .json), it loads with one note."""
+@pytest.mark.parametrize("index", range(4))
+def test_shipped_checkpoints_load_checked_and_a_copy_without_its_json_loads_as_its_digest_says(index, tmp_path):
+    """Each shipped .pt matches the digest it or its .json states; alone (no .json), one written with its digest
+    loads quietly and one written before digests loads with one note."""
     from sctn.checkpoint import read_checkpoint
 
     pt, kind = shipped()[index]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         blob = read_checkpoint(pt, kind, kind)
-    assert DIGEST_KEY not in blob["meta"]  # the digest of these is the .json's, derived from the unchanged weights
+    assert (DIGEST_KEY in blob["meta"]) == DIGEST_IN_PT[pt.name]
     alone = tmp_path / pt.name
     shutil.copy(pt, alone)
-    with pytest.warns(UndigestedCheckpointWarning, match="no weights_sha256 digest"):
-        read_checkpoint(alone, kind, kind)
+    if DIGEST_IN_PT[pt.name]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            read_checkpoint(alone, kind, kind)
+    else:
+        with pytest.warns(UndigestedCheckpointWarning, match="no weights_sha256 digest"):
+            read_checkpoint(alone, kind, kind)
     flip_weight_bytes(alone)
     with pytest.raises(UserError, match="damaged"):
         read_checkpoint(alone, kind, kind)

@@ -69,10 +69,7 @@ def test_shipped_checkpoint_with_negative_target_row_learns_only_with_stca(tmp_p
     from sctn.training.snn import TrainConfig, batch_loss
 
     path = moving_square_file(tmp_path / "syn.h5", duration_ms=40, seed=1)
-    from sctn.checkpoint import TrainingRuleWarning
-
-    with pytest.warns(TrainingRuleWarning, match="old error-time rule"):  # the shipped one: trained with "max"
-        model, _ = load_checkpoint(None)
+    model, _ = load_checkpoint(None)
     with torch.no_grad():
         model.fcs[2].weight[1] = -model.fcs[2].weight[1].abs()
     with Dataset(path) as ds:
