@@ -14,12 +14,14 @@ from __future__ import annotations
 import argparse
 import csv
 import glob
+import io
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks.analysis.tables import TABLE_FILES
 from benchmarks.evaluation.metrics import ALL
 
 METRICS = ("A", "R", "ARscore")
@@ -38,7 +40,7 @@ class SeedRow:
 def read_results(run_dir: str | Path) -> tuple[str, dict[str, dict[str, float]]]:
     """(tracker, {sequence: {A, R, ARscore}}) of one bench output directory's results.csv; ValueError naming the
     file when it is missing, holds several trackers, a failed sequence or no pooled row."""
-    path = Path(run_dir) / "results.csv"
+    path = Path(run_dir) / TABLE_FILES["csv"]
     if not path.is_file():
         raise ValueError(f"{path}: no results.csv (not a dvsot bench output directory)")
     with path.open(newline="") as fh:
@@ -96,13 +98,15 @@ def to_markdown(rows: list[SeedRow]) -> str:
 
 def to_csv(rows: list[SeedRow]) -> str:
     """One line per group, sequence and metric: label, tracker, seeds, sequence, metric, mean, std."""
-    out = [["label", "tracker", "seeds", "sequence", "metric", "mean", "std"]]
+    buf = io.StringIO()
+    out = csv.writer(buf, lineterminator="\n")
+    out.writerow(["label", "tracker", "seeds", "sequence", "metric", "mean", "std"])
     for r in rows:
         for seq in sequence_order(rows):
             for m in METRICS:
                 mean, std = r.cells[seq][m]
-                out.append([r.label, r.tracker, str(r.seeds), seq, m, f"{mean:.4f}", f"{std:.4f}"])
-    return "\n".join(",".join(f'"{c}"' if "," in c else c for c in line) for line in out) + "\n"
+                out.writerow([r.label, r.tracker, r.seeds, seq, m, f"{mean:.4f}", f"{std:.4f}"])
+    return buf.getvalue()
 
 
 def parse_group(text: str) -> tuple[str, list[str]]:
