@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.analysis.tables import TABLE_FILES
+from benchmarks.analysis.tables import TABLE_FILES, write_text_atomic
 from benchmarks.evaluation.metrics import ALL
 
 METRICS = ("A", "R", "ARscore")
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(to_markdown(rows), end="")
     if args.csv:
-        args.csv.write_text(to_csv(rows))
+        write_text_atomic(args.csv, to_csv(rows))
     return 0
 
 
