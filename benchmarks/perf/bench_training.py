@@ -2,7 +2,7 @@
 the reference loop of torch ops; print JSON.
 
     python -m benchmarks.perf.bench_training [--data FILE.h5] [--checkpoint CKPT] [--steps 5] [--repeat 3]
-        [--batch-segments 2] [--threads 1] [--full DATA_DIR]
+        [--batch-segments 2] [--threads 1] [--full DATA_DIR] [--row ROW] [--budget-steps N] [--compiled-only]
 
 A step is what `dvsot train` runs per mini-batch: the samples of --batch-segments segments (20
 positive + 40 negative each), encoded as 107x107 canvases. Without --data a synthetic 160x120
@@ -14,6 +14,11 @@ The checkpoint's recorded budget (its .json's train_config) gives `projected_min
 times the compiled path's time per step (validation and data loading not included). `--full DATA_DIR`
 measures instead of projecting: it trains a new network with that train_config on the files of DIR
 named in the checkpoint's data list, as `dvsot train` does, and prints the wall and CPU minutes.
+
+`--row ROW` times the network of an ablation row (benchmarks.experiments.ablation.ROWS, e.g. the widths
+sweep's widths_x2 / widths_x4 / widths_mdnet) from its initial weights (seed 0) instead of the
+checkpoint's; `--budget-steps N` projects N steps instead of the recorded budget (the ablation's plateau
+budget is 500), so a row too slow to train here still gets its time to that budget.
 """
 
 from __future__ import annotations
@@ -90,6 +95,17 @@ def full_training(meta: dict, data_dir: Path, threads: int) -> dict:
             "cpu_minutes": round((time.process_time() - cpu) / 60, 2), "silent": history.get("silent")}
 
 
+def row_model(row: str):
+    """A fresh network (seed 0, the preset's Kaiming start) with the NetworkConfig fields of ablation row `row`."""
+    from benchmarks.experiments.ablation import ROWS
+    from sctn.network import SCTN, NetworkConfig
+
+    if row not in ROWS:
+        raise SystemExit(f"--row: unknown ablation row {row!r}; rows: {', '.join(sorted(ROWS))}")
+    torch.manual_seed(0)
+    return SCTN(NetworkConfig(**ROWS[row][1]))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", help="dataset file (default: a synthetic sequence)")
@@ -100,13 +116,22 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--full", type=Path, metavar="DATA_DIR",
                         help="also train the checkpoint's whole recorded budget on DIR's files and time it")
+    parser.add_argument("--row", help="time this ablation row's network (fresh weights) instead of the checkpoint's")
+    parser.add_argument("--compiled-only", action="store_true", help="skip the reference torch loop (wide rows)")
+    parser.add_argument("--budget-steps", type=int, help="project this many steps instead of the recorded budget")
     args = parser.parse_args()
+    if args.budget_steps is not None and args.budget_steps < 1:
+        parser.error(f"--budget-steps must be >= 1, got {args.budget_steps}")
+    if args.row and args.full:
+        parser.error("--full trains the checkpoint's recorded network; it does not take --row")
     from dvsot.dataset import Dataset
     from sctn.checkpoint import load_checkpoint
     from sctn.training.snn import segment_batch, usable_segments
 
     torch.set_num_threads(args.threads)
     model, meta = load_checkpoint(args.checkpoint)
+    if args.row:
+        model = row_model(args.row)
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(args.data) if args.data else None
@@ -123,23 +148,28 @@ def main() -> None:
                 segs = [ds.segment(int(i)) for i in row]
                 batches.append(segment_batch([(s.events, s.t0_us, s.box) for s in segs],
                                              [(ds.width, ds.height)] * len(segs), rng, model.cfg))
-    runs = [time_steps(model, batches, reference, args.steps, args.repeat) for reference in (False, True)]
-    same = runs[0]["losses"] == runs[1]["losses"]
+    paths = (False,) if args.compiled_only else (False, True)
+    runs = [time_steps(model, batches, reference, args.steps, args.repeat) for reference in paths]
+    compare = {} if args.compiled_only else {"speedup": round(runs[1]["s_per_step"] / runs[0]["s_per_step"], 2),
+                                             "same_losses": runs[0]["losses"] == runs[1]["losses"]}
     budget = {}
-    if "train_config" in meta:
+    if args.budget_steps is not None:
+        budget = {"budget_steps": args.budget_steps,
+                  "projected_minutes": round(args.budget_steps * runs[0]["s_per_step"] / 60, 2)}
+    elif "train_config" in meta:
         steps = budget_steps(meta["train_config"])
         budget = {"recorded_budget_steps": steps, "recorded_batch_segments": meta["train_config"]["batch_segments"],
-                  "projected_minutes": round(steps * runs[0]["s_per_step"] / 60, 2),
-                  "recorded_minutes": round(meta.get("history", {}).get("minutes", float("nan")), 2)}
+                  "projected_minutes": round(steps * runs[0]["s_per_step"] / 60, 2)}
+        if not args.row:
+            budget["recorded_minutes"] = round(meta.get("history", {}).get("minutes", float("nan")), 2)
         if args.batch_segments != meta["train_config"]["batch_segments"]:
             budget["note"] = "--batch-segments differs from the recorded budget: the projection scales a different step"
     if args.full:
         budget["full_training"] = full_training(meta, args.full, args.threads)
     print(json.dumps({"data": str(args.data or "synthetic 160x120 moving square"), "threads": args.threads,
+                      "row": args.row or "the checkpoint's network",
                       "network": {"channels": model.cfg.channels, "fc": model.cfg.fc},
-                      "samples_per_step": int(batches[0][0].shape[0]), "runs": runs,
-                      "speedup": round(runs[1]["s_per_step"] / runs[0]["s_per_step"], 2),
-                      "same_losses": same, **budget}, indent=2))
+                      "samples_per_step": int(batches[0][0].shape[0]), "runs": runs, **compare, **budget}, indent=2))
 
 
 if __name__ == "__main__":
