@@ -60,7 +60,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "lr_cosine": ({"lr_schedule": "cosine"}, {}, {}),  # the paper gives no schedule: constant, or cosine to 0
     "finetune_balanced": ({}, {}, {"finetune_balanced": True}),
     "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
-    "finetune_on_reinit": ({}, {}, {"finetune_on_reinit": True}),
+    "finetune_first_only": ({}, {}, {"finetune_on_reinit": False}),  # Algorithm 1's fine-tuning, not repeated
     "squared_error": ({"squared_error": True}, {}, {}),
     # the background output neuron: trained by the mirrored error, or left out of the network and its op counts
     # (the preset keeps it, untrained: the paper has two output neurons and trains the target's voltage)

@@ -12,7 +12,7 @@ import torch
 
 from sctn.finetune import BALANCED, finetune, minibatch
 from sctn.network import SCTN, NetworkConfig
-from sctn.params import SCTNParams
+from sctn.params import SCTNParams, SearchParams
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from synthetic import moving_square_file  # noqa: E402
@@ -57,13 +57,13 @@ def test_fc_only_leaves_the_convolutions_and_their_neurons_alone(segment) -> Non
         finetune(net, seg.events, seg.t0_us, seg.box, wh, np.random.default_rng(0), iters=1, layers="conv")
 
 
-def test_finetune_on_reinit_tunes_again_and_the_default_does_not(segment, monkeypatch) -> None:
+def test_the_default_tunes_again_at_each_reinit_and_first_only_does_not(segment, monkeypatch) -> None:
     import sctn.tracker
 
     seg, wh, _ = segment
     calls = []
     monkeypatch.setattr(sctn.tracker, "finetune", lambda *a, **k: calls.append(k) or {})
-    assert SCTNParams().finetune_on_reinit is False and SCTNParams().error_time == "stca"
+    assert SCTNParams().finetune_on_reinit is True and SearchParams().finetune_on_reinit is True and SCTNParams().error_time == "stca"
     for again, expected in ((False, 1), (True, 2)):
         calls.clear()
         tracker = sctn.tracker.SCTNTracker(SCTN(SMALL), finetune_on_reinit=again, finetune_balanced=True,
