@@ -196,7 +196,7 @@ def to_markdown(summary: Mapping) -> str:
         lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} | "
                      f"{per_seq[ALL]['init_s']:.1f} |")
     return "\n".join(lines) + ("\n\nEach cell: A / R / **ARscore** (b = 2). seg/s: tracked segments per second of "
-                               "update time; init s: seconds spent initialising (SCTN fine-tunes on the first segment).\n")
+                               "update time; init s: seconds spent initialising (SCTN fine-tunes at each initialisation).\n")
 
 
 def to_latex(summary: Mapping) -> str:
