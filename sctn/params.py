@@ -18,8 +18,8 @@ FinetuneLayers = Literal["all", "fc"]  # what fine-tuning updates (sctn/finetune
 
 class SearchParams(Strict):
     """Algorithm 1's settings for any model the tracker runs (SCTN or its ANN twin): seed, fine-tuning, candidates
-    (translation range in mean box sizes), the V* rule and the top-k mean box. The defaults are the paper's, and where it is silent the validation scenes'
-    choice."""
+    (translation range in mean box sizes), the V* rule and the top-k mean box. The defaults are the paper's, and
+    where it is silent the validation scenes' choice."""
 
     seed: Int = Field(0, ge=0, description="fixes the fine-tuning and the candidates drawn at each location")
     finetune_iters: Int = Field(10, ge=0, description="fine-tuning mini-batches at each initialisation")

@@ -63,7 +63,8 @@ def test_the_default_tunes_again_at_each_reinit_and_first_only_does_not(segment,
     seg, wh, _ = segment
     calls = []
     monkeypatch.setattr(sctn.tracker, "finetune", lambda *a, **k: calls.append(k) or {})
-    assert SCTNParams().finetune_on_reinit is True and SearchParams().finetune_on_reinit is True and SCTNParams().error_time == "stca"
+    assert SCTNParams().finetune_on_reinit is True and SearchParams().finetune_on_reinit is True
+    assert SCTNParams().error_time == "stca"
     for again, expected in ((False, 1), (True, 2)):
         calls.clear()
         tracker = sctn.tracker.SCTNTracker(SCTN(SMALL), finetune_on_reinit=again, finetune_balanced=True,
