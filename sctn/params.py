@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal, get_args
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from dvsot.strict import Bool, Float, Int, Strict
 from sctn.samples import TRACK
@@ -14,6 +14,7 @@ CROPS: tuple[str, ...] = get_args(Crop)
 ErrorTime = Literal["stca", "max"]  # where a sample's error sits in time: STCA's rule, or V's maximum (sctn/loss.py)
 ERROR_TIMES: tuple[str, ...] = get_args(ErrorTime)
 FinetuneLayers = Literal["all", "fc"]  # what fine-tuning updates (sctn/finetune.py)
+ReinitFrom = Literal["tuned", "trained"]  # the network a re-initialisation fine-tunes (sctn/tracker.py)
 
 
 class SearchParams(Strict):
@@ -26,12 +27,22 @@ class SearchParams(Strict):
     # the protocol "reinitializes the tracker" after a failure; whether that repeats Algorithm 1's fine-tuning the
     # paper does not say, and the validation scenes chose it (docs/sctn.md, Ablations)
     finetune_on_reinit: Bool = Field(True, description="fine-tune again at each re-initialisation after a failure")
+    # a re-initialisation tunes the network tuned so far further, or starts again from a fresh copy of the trained
+    # one (VOT's new tracker per re-initialisation; the row reinit_from_trained)
+    reinit_from: ReinitFrom = Field("tuned", description="re-initialisation: tune the tuned network, or the trained")
     n_candidates: Int = Field(TRACK.n, ge=1)
     trans: Float = Field(TRACK.trans, gt=0, description="initial translation range, x mean box size")
     trans_growth: Float = Field(1.5, ge=1, description="factor on the range after an unconfident segment")
     trans_max: Float = Field(1.5, gt=0, description="largest translation range")
     vstar_threshold: Float = Field(0.2, description="V* at or above it resets the range")
     top_k: Int = Field(3, ge=1, description="candidates whose mean box and voltage are C* and V*")
+
+    @model_validator(mode="after")
+    def _fresh_start_is_tuned(self) -> "SearchParams":
+        """A fresh copy of the trained network at a re-initialisation needs that re-initialisation's fine-tuning."""
+        if self.reinit_from == "trained" and not self.finetune_on_reinit:
+            raise ValueError("reinit_from 'trained' needs finetune_on_reinit: the fresh copy would track untuned")
+        return self
 
 
 class SCTNParams(SearchParams):

@@ -21,6 +21,8 @@ whether that repeats the fine-tuning, and the validation scenes chose it (docs/s
 Each re-initialisation tunes the already tuned network further on its segment, with the same budget,
 from its ground-truth box alone. `finetune_on_reinit=False` is the alternative (the row
 `finetune_first_only`): a re-initialisation then resets the box and the translation range only.
+`reinit_from="trained"` (the row `reinit_from_trained`) tunes a fresh copy of the trained network at each
+re-initialisation instead, as a new tracker would; the samples' generator runs on either way.
 Fine-tuning's own settings (`error_time`, `finetune_balanced`, `finetune_layers`) are sctn.finetune's.
 """
 
@@ -65,7 +67,7 @@ class SCTNTracker:
         self.finetune_search_iters = p.finetune_search_iters if p.fast else 0
         self.finetune_options = {"error_time": p.error_time, "balanced": p.finetune_balanced,
                                  "layers": p.finetune_layers}
-        self.finetune_on_reinit = p.finetune_on_reinit
+        self.finetune_on_reinit, self.reinit_from = p.finetune_on_reinit, p.reinit_from
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = (p.n_candidates, p.trans, p.trans_growth,
                                                                             p.trans_max)
         self.vstar_threshold, self.top_k = p.vstar_threshold, p.top_k
@@ -79,15 +81,16 @@ class SCTNTracker:
 
     def init(self, events: EventBatch, t0_us: int, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time (and at
-        every later initialisation with finetune_on_reinit)."""
+        every later initialisation with finetune_on_reinit: the tuned network, or a fresh copy with reinit_from)."""
         self.box = np.asarray(box_xywh, np.float64).copy()
         self.image_wh = (int(width), int(height))
         self.trans = self.trans0
         first = not self.tuned
         if first:
             self.rng = np.random.default_rng(self.seed)
-            self.model = copy.deepcopy(self.base)
             torch.manual_seed(self.seed)
+        if first or self.reinit_from == "trained":
+            self.model = copy.deepcopy(self.base)
         if self.finetune_iters > 0 and (first or self.finetune_on_reinit):
             self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
                                        iters=self.finetune_iters, search_iters=self.finetune_search_iters,

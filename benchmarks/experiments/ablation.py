@@ -61,6 +61,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "finetune_balanced": ({}, {}, {"finetune_balanced": True}),
     "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
     "finetune_first_only": ({}, {}, {"finetune_on_reinit": False}),  # Algorithm 1's fine-tuning, not repeated
+    "reinit_from_trained": ({}, {}, {"reinit_from": "trained"}),  # each re-initialisation tunes the trained network
     "squared_error": ({"squared_error": True}, {}, {}),
     # the background output neuron: trained by the mirrored error, or left out of the network and its op counts
     # (the preset keeps it, untrained: the paper has two output neurons and trains the target's voltage)

@@ -73,3 +73,36 @@ def test_the_default_tunes_again_at_each_reinit_and_first_only_does_not(segment,
         tracker.init(seg.events, seg.t0_us, seg.box, *wh)  # the protocol's re-initialisation
         assert len(calls) == expected
         assert calls[0]["balanced"] is True and calls[0]["layers"] == "fc" and calls[0]["error_time"] == "stca"
+
+
+def test_reinit_from_trained_tunes_a_fresh_copy_and_the_default_tunes_the_tuned(segment, monkeypatch) -> None:
+    import sctn.tracker
+
+    seg, wh, _ = segment
+    seen = []
+
+    def fake_finetune(model, *a, **k):  # records the weights it was handed, then "tunes" them by +1
+        weight = next(model.parameters())
+        seen.append(weight.detach().clone())
+        with torch.no_grad():
+            weight.add_(1.0)
+        return {}
+
+    monkeypatch.setattr(sctn.tracker, "finetune", fake_finetune)
+    assert SCTNParams().reinit_from == "tuned"
+    base = SCTN(SMALL)
+    trained = next(base.parameters()).detach().clone()
+    for reinit_from, second in (("tuned", trained + 1.0), ("trained", trained)):
+        seen.clear()
+        tracker = sctn.tracker.SCTNTracker(base, reinit_from=reinit_from)
+        tracker.init(seg.events, seg.t0_us, seg.box, *wh)
+        tracker.init(seg.events, seg.t0_us, seg.box, *wh)  # the protocol's re-initialisation
+        assert len(seen) == 2 and torch.equal(seen[0], trained) and torch.equal(seen[1], second)
+        assert torch.equal(next(base.parameters()), trained)  # the trained network itself is never tuned
+
+
+def test_reinit_from_trained_without_tuning_on_reinit_is_rejected() -> None:
+    with pytest.raises(ValueError, match="needs finetune_on_reinit"):
+        SCTNParams(reinit_from="trained", finetune_on_reinit=False)
+    with pytest.raises(ValueError, match="reinit_from"):
+        SearchParams(reinit_from="fresh")
