@@ -118,6 +118,7 @@ class Cluster:
 
         from dvsot.runtime import local_workers as localworkers
 
+        localworkers.quiet_logs()
         # the scheduler here, no workers of its own: they are this process's children (dvsot.runtime.local_workers)
         self.cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1", scheduler_port=0,
                                     dashboard_address=None, silence_logs=logging.CRITICAL,

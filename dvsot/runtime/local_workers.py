@@ -36,6 +36,16 @@ def die_with_parent(parent: int) -> None:
         os._exit(128 + signal.SIGTERM)
 
 
+def quiet_logs() -> None:
+    """Dask's own log lines off in this process: a local run reports each failure itself, as one line.
+
+    Set on the loggers, not only on their handlers for the cluster's lifetime (LocalCluster's `silence_logs`):
+    the event loop thread outlives the cluster, and a comm that closes as the run stops logs its traceback late.
+    """
+    for logger in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(logger).setLevel(logging.CRITICAL)
+
+
 def task_started() -> None:
     """A task begins in this process."""
     _active[0] += 1
@@ -77,8 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     interrupts.set_parent(int(parent))
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _on_sigterm)
-    for logger in ("distributed", "tornado", "asyncio"):
-        logging.getLogger(logger).setLevel(logging.CRITICAL)
+    quiet_logs()
     try:
         asyncio.run(_serve(address, name))
     except Exception:
