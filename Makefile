@@ -23,7 +23,7 @@ demo: $(STAMP)
 	$(BIN)/dvsot info out/quickstart.h5
 
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 clean:
 	rm -rf $(VENV) out
