@@ -55,7 +55,8 @@ def rows() -> list[dict]:
         out.append({"network": name, "per_frame": frame, "init": init, "template_and_search": both,
                     "paper_per_frame": ref, "per_frame_vs_paper": None if ref is None else frame / ref - 1,
                     "both_vs_paper": None if ref is None else both / ref - 1,
-                    "frame_blocks": by_block(c["per_frame"]["by_layer"]), "init_blocks": by_block(c["init"]["by_layer"])})
+                    "frame_blocks": by_block(c["per_frame"]["by_layer"]),
+                    "init_blocks": by_block(c["init"]["by_layer"])})
     return out
 
 

@@ -177,7 +177,8 @@ def caffenet_trunk() -> nn.Sequential:
     return nn.Sequential(OrderedDict([
         ("conv1", conv(3, 96, 11, 4)), ("pool1", nn.MaxPool2d(3, 2)), ("norm1", nn.LocalResponseNorm(5)),
         ("conv2", conv(96, 256, 5, p=2, g=2)), ("pool2", nn.MaxPool2d(3, 2)), ("norm2", nn.LocalResponseNorm(5)),
-        ("conv3", conv(256, 384, 3, p=1)), ("conv4", conv(384, 384, 3, p=1, g=2)), ("conv5", conv(384, 256, 3, p=1, g=2)),
+        ("conv3", conv(256, 384, 3, p=1)), ("conv4", conv(384, 384, 3, p=1, g=2)),
+        ("conv5", conv(384, 256, 3, p=1, g=2)),
         ("pool5", nn.MaxPool2d(3, 2)),
     ]))
 
