@@ -15,6 +15,13 @@ as published:
   15x15 / 31x31 output meets the main path's.
 - GOTURN (Held et al. 2016): CaffeNet conv1-conv5 (grouped conv2/4/5, pool5 6x6x256) on two 227x227
   crops, three fully connected layers of 4096, then 4 box outputs.
+- Ocean (Zhang et al. 2020), offline model, as read from its paper with widths it leaves open assumed:
+  SiamMask's trunk (ResNet-50 to conv4_x, output stride 8, adjust to 256) with the template map centre-
+  cropped to 7x7; per branch (classification, regression) a feature combination of three parallel
+  3x3 convolutions of dilation (1,1), (1,2), (2,1) on template and search features, depth-wise correlated
+  and summed (25x25x256); towers of four 3x3 convolutions of 256; regression 3x3 to 4 distances,
+  classification 3x3 to 1; the object-aware branch's feature alignment counted as the 3x3 convolution
+  it computes after sampling (256 channels, then 1x1 to 1): bilinear sampling is not a MAC.
 """
 
 from __future__ import annotations
@@ -206,6 +213,52 @@ class GOTURN(SiameseNet):
         both = self.backbone(torch.cat([cached, x]))
         b = x.shape[0]
         return self.regressor(torch.cat([both[:b].flatten(1), both[b:].flatten(1)], dim=1))
+
+
+class Ocean(SiameseNet):
+    """Ocean (Zhang et al. 2020), offline: anchor-free regression and object-aware classification (module doc)."""
+
+    DILATIONS = ((1, 1), (1, 2), (2, 1))
+
+    def __init__(self, search_size: int = 255, template_size: int = 127, channels: int = 256, tower: int = 4,
+                 crop: int = 7):
+        super().__init__()
+        self.template_size, self.search_size, self.crop = template_size, search_size, crop
+        self.backbone = resnet50_os8()
+
+        def combination() -> nn.ModuleDict:
+            def convs() -> nn.ModuleList:
+                return nn.ModuleList([conv_bn(channels, channels, 3, dilation=d) for d in self.DILATIONS])
+            return nn.ModuleDict({"template": convs(), "search": convs()})
+
+        def towers() -> nn.Sequential:
+            return nn.Sequential(*[conv_bn(channels, channels, 3, padding=1) for _ in range(tower)])
+
+        self.cls_combine, self.reg_combine = combination(), combination()
+        self.cls_tower, self.reg_tower = towers(), towers()
+        self.reg_pred = nn.Conv2d(channels, 4, 3, padding=1)
+        self.cls_pred = nn.Conv2d(channels, 1, 3, padding=1)
+        self.align = conv_bn(channels, channels, 3, padding=1)  # the alignment's convolution after sampling
+        self.align_pred = nn.Conv2d(channels, 1, 1)
+
+    def template(self, z: torch.Tensor) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+        """Per branch, the three dilated template kernels from the centre 7x7 of the template map."""
+        f = self.backbone(z)
+        lo = (f.shape[-1] - self.crop) // 2
+        f = f[:, :, lo:lo + self.crop, lo:lo + self.crop]
+        return [c(f) for c in self.cls_combine["template"]], [c(f) for c in self.reg_combine["template"]]
+
+    @staticmethod
+    def combine(combination: nn.ModuleDict, kernels: list[torch.Tensor], f: torch.Tensor) -> torch.Tensor:
+        """Sum over the dilations of the depth-wise correlation of the dilated search and template features."""
+        return sum(depthwise_xcorr(conv(f), k) for conv, k in zip(combination["search"], kernels))
+
+    def track(self, cached, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Distances (B, 4, 25, 25), classification (B, 1, 25, 25) and object-aware score (B, 1, 25, 25)."""
+        f = self.backbone(x)
+        reg = self.reg_pred(self.reg_tower(self.combine(self.reg_combine, cached[1], f)))
+        cls_feat = self.cls_tower(self.combine(self.cls_combine, cached[0], f))
+        return reg, self.cls_pred(cls_feat), self.align_pred(self.align(cls_feat))
 
 
 def count_siamese(net: SiameseNet, device: str = "meta") -> dict:

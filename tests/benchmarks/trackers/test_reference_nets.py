@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from benchmarks.trackers.reference_nets import GOTURN, SiamMask, SiamRPN, count_siamese
+from benchmarks.trackers.reference_nets import GOTURN, Ocean, SiamMask, SiamRPN, count_siamese
 
 
 def meta(cls, *args):
@@ -70,3 +70,16 @@ def test_goturn_runs_both_crops_every_frame():
     fc = 2 * 9216 * 4096 + 2 * 4096 * 4096 + 4096 * 4
     conv = 2 * (55 ** 2 * 121 * 3 * 96 + 27 ** 2 * 25 * 48 * 256 + 13 ** 2 * 9 * (256 * 384 + 192 * 384 + 192 * 256))
     assert c["per_frame"]["mac_ops"] == fc + conv
+
+
+def test_ocean_maps_and_head_count():
+    reg, cls, aware = meta_run(meta(Ocean), 127, 255)
+    assert reg.shape == (1, 4, 25, 25) and cls.shape == aware.shape == (1, 1, 25, 25)
+    c = count_siamese(meta(Ocean))
+    frame = c["per_frame"]["by_layer"]
+    # per branch, the three dilated 3x3 search convolutions: 31x31 -> 29x29, 29x27, 27x29
+    search = 256 * 256 * 9 * (29 * 29 + 2 * 29 * 27)
+    assert sum(v for k, v in frame.items() if ".reg_combine.search." in k) == search
+    assert frame["functional"] == 2 * 25 * 25 * 256 * (5 * 5 + 2 * 5 * 3)  # three correlations per branch
+    towers = 9 * 25 * 25 * 256 * 256 * 9  # 2 x 4 tower layers and the alignment convolution
+    assert sum(v for k, v in frame.items() if "_tower." in k or ".align." in k) == towers
