@@ -82,7 +82,8 @@ class MacCounter(TorchDispatchMode):
 
     def _name_tree(self, root: nn.Module) -> None:
         base = type(root).__name__
-        taken = sum(1 for name in self._owners if name == base or name.startswith(base + "#"))
+        roots = [name for name in self._owners if "." not in name]
+        taken = sum(1 for name in roots if name == base or name.startswith(base + "#"))
         if taken:  # another root of the same class: keep the two apart
             base = f"{base}#{taken + 1}"
         for path, mod in root.named_modules():

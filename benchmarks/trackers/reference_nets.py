@@ -6,7 +6,7 @@ as published:
   with k = 5 anchors, "up-channel" correlation: the template's features become 2k and 4k kernels of
   256 channels (3x3 convs to 256 x 2k and 256 x 4k channels), correlated with the search features
   after a 3x3 conv each; template 127, search 271 (the tracking size, score map 19x19) or 255.
-- SiamMask (Wang et al. 2019, its appendix Table 8-9, three-branch variant): ResNet-50's conv1 to
+- SiamMask (Wang et al. 2019, its appendix's architecture tables, three-branch variant): ResNet-50's conv1 to
   conv4_x with output stride 8 (conv4_x stride 1, dilation 2), conv1 unpadded (61x61 / 125x125
   maps), conv3_x's stride-2 3x3 unpadded (15x15 / 31x31), adjust 1x1 to 256; depth-wise correlation
   (17x17x256); heads 1x1 256 then 1x1 to 2k scores, 4k box offsets and 63x63 = 3969 mask logits per

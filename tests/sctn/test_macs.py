@@ -73,9 +73,9 @@ def test_each_operation_goes_to_the_innermost_module_running_it():
 
 
 def test_two_roots_of_one_class_are_kept_apart():
-    first, second = nn.Sequential(nn.Linear(4, 4)), nn.Sequential(nn.Linear(4, 8))
-    m = count_macs(lambda x: second(first(x)), torch.zeros(1, 4))
-    assert m["by_layer"] == {"Sequential.0": 16, "Sequential#2.0": 32}
+    first, second, third = (nn.Sequential(nn.Linear(i, o)) for i, o in ((4, 4), (4, 8), (8, 2)))
+    m = count_macs(lambda x: third(second(first(x))), torch.zeros(1, 4))
+    assert m["by_layer"] == {"Sequential.0": 16, "Sequential#2.0": 32, "Sequential#3.0": 16}
 
 
 def test_meta_tensors_count_like_real_ones_and_the_counter_leaves_no_hooks():
