@@ -4,7 +4,7 @@ SNN: every spike costs one accumulate (AC) per synapse it drives (its fan-out): 
 conv1, each layer's spikes into the next; the output layer's spikes drive nothing. A convolution's
 fan-out per input pixel is (out channels) x (number of output positions whose kernel covers the
 pixel); a fully connected layer's is its output width. ANN MACs are counted on the layers that run
-(count_macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
+(count_macs, sctn.macs). Energy: AC 0.9 pJ, MAC 4.6 pJ (45 nm, 32-bit float; Han et al. 2015).
 
 Neuron-state updates are counted apart (the paper counts synaptic operations only): an SNN updates
 every neuron's C-LIF state at every step (neurons._clif_steps: 3 multiplies and 4 adds, counted for
@@ -137,21 +137,11 @@ def energy_pj(ac_ops: float = 0.0, mac_ops: float = 0.0, e_ac: float = E_AC_PJ, 
 
 
 def count_macs(fn, *inputs: torch.Tensor) -> dict:
-    """Multiply-accumulates of one call fn(*inputs) (a module or any function of modules), counted by torch's FLOP
-    counter on the operations that run (MAC = FLOPs / 2): {"mac_ops": total, "by_layer": {module: MACs}}."""
-    from torch.utils.flop_counter import FlopCounterMode
+    """Multiply-accumulates of one call fn(*inputs) (a module or any function of modules), counted on the operations
+    that run (sctn.macs): {"mac_ops": total, "by_layer": {module: MACs}, "by_kind": {conv|...: MACs}}."""
+    from sctn.macs import count_macs as count
 
-    counter = FlopCounterMode(display=False)
-    with counter, torch.no_grad():
-        fn(*inputs)
-    counts = counter.get_flop_counts()
-    # leaves only (a parent module's count includes its children's): "SCTNTwin.convs.0", not "SCTNTwin.convs"
-    by_layer = {name: sum(ops.values()) / 2 for name, ops in counts.items()
-                if name != "Global" and not any(other.startswith(name + ".") for other in counts)}
-    rest = counter.get_total_flops() / 2 - sum(by_layer.values())
-    if rest > 0:  # functional calls outside any module (SiamFC's cross-correlation)
-        by_layer["functional"] = rest
-    return {"mac_ops": counter.get_total_flops() / 2, "by_layer": by_layer}
+    return count(fn, *inputs)
 
 
 def snn_state_updates(cfg) -> float:
