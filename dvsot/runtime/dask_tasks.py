@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from dvsot.errors import RunError, UserError, exception_line
-from dvsot.limits import MAX_WORKERS
+from dvsot.core.errors import RunError, UserError, exception_line
+from dvsot.core.bounds import MAX_WORKERS
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Failure:
 
     error: str
     worker: str | None = None
-    kind: str | None = None  # "user" (bad input, dvsot.errors.UserError), "run" (RunError), "interrupted", None
+    kind: str | None = None  # "user" (bad input, dvsot.core.errors.UserError), "run" (RunError), "interrupted", None
     message: str | None = None  # a UserError's or RunError's own message, raised again as such here
 
 
@@ -169,7 +169,7 @@ def _guarded(lease: str | None, fn: Callable, *args) -> Any:
     """fn(*args) in a worker, under its run's lease if it has one (dvsot.runtime.staging.LeaseGuard); an exception, an
     interrupt included, comes back as a Failure (no traceback in the worker's log)."""
     from dvsot.runtime import interrupts, local_workers as localworkers
-    from dvsot.errors import RunError
+    from dvsot.core.errors import RunError
     from dvsot.runtime.staging import LeaseGuard
 
     guard = LeaseGuard(lease) if lease is not None else None
