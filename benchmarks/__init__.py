@@ -9,7 +9,7 @@ per-sequence files, pictures and manifest, written together), `energy_table` (th
 `find_sequences` (the files to run on). Checkpoints load through `sctn.load_checkpoint`.
 """
 
-from dvsot.lazy import lazy_attributes
+from dvsot.core.lazy import lazy_attributes
 
 _API = {
     "run_benchmark": "benchmarks.evaluation.plan",

@@ -9,14 +9,14 @@ reads them (with a recording's boxes). Each name is imported on first use, so `i
 torch, no bpy).
 """
 
-from dvsot.lazy import lazy_attributes
+from dvsot.core.lazy import lazy_attributes
 
 __version__ = "0.1.0"
 
 _API = {
     "load_scene": "dvsot.scene",
     "SceneConfig": "dvsot.scene",
-    "generate": "dvsot.generate",
+    "generate": "dvsot.pipeline.generate",
     "generate_scenes": "dvsot.pipeline.scene_files",
     "generate_many": "dvsot.pipeline.many_scenes",
     "many_tasks": "dvsot.pipeline.many_scenes",
@@ -38,8 +38,8 @@ _API = {
     "export_dataset": "dvsot.interop.event_files",
     "read_event_file": "dvsot.interop.event_files",
     "import_recording": "dvsot.interop.recordings",
-    "UserError": "dvsot.errors",
-    "RunError": "dvsot.errors",
+    "UserError": "dvsot.core.errors",
+    "RunError": "dvsot.core.errors",
 }
 __all__ = ["__version__", *_API]
 __getattr__, __dir__ = lazy_attributes(__name__, _API)

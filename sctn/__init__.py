@@ -5,7 +5,7 @@ Public names (each imported on first use): the model `SCTN` and its `NetworkConf
 `save_checkpoint`), and NIR export (`export_nir`, `sctn_graph`: docs/nir.md).
 """
 
-from dvsot.lazy import lazy_attributes
+from dvsot.core.lazy import lazy_attributes
 
 _API = {
     "SCTN": "sctn.network",

@@ -12,9 +12,9 @@ from typing import Callable, Mapping
 
 import torch
 
-from dvsot.errors import RunError, UserError, exception_line
+from dvsot.core.errors import RunError, UserError, exception_line
 from dvsot.runtime.outputs import replacing, run_outputs
-from dvsot.limits import file_kind_problem
+from dvsot.core.bounds import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"

@@ -50,7 +50,7 @@ from typing import Literal
 import numpy as np
 import torch
 
-from dvsot.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line
 from sctn.network import SCTN
 
 DT_S = 1e-3  # C-LIF's step in the paper preset (1 ms), in NIR's unit (seconds); a network's own is its step_us
@@ -169,7 +169,7 @@ def _cubalif(nir, c: dict[str, np.ndarray], shape: tuple[int, ...], theta: float
 
 def _sctn_checkpoint(path: Path) -> SCTN:
     """The SCTN of a checkpoint file; UserError naming the file and what it holds otherwise."""
-    from dvsot.limits import file_kind_problem
+    from dvsot.core.bounds import file_kind_problem
     from sctn.checkpoint import load_checkpoint, read_checkpoint
 
     held = _hdf5_content(path) if file_kind_problem(path) is None else None

@@ -6,7 +6,7 @@ from typing import Literal, get_args
 
 from pydantic import Field, model_validator
 
-from dvsot.strict import Bool, Float, Int, Strict
+from dvsot.core.strict import Bool, Float, Int, Strict
 from sctn.samples import TRACK
 
 Crop = Literal["bilinear", "nearest"]  # the fast mode's crop of conv3's map (SCTN.forward_search)

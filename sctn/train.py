@@ -1,9 +1,9 @@
-"""Re-exports sctn.training.snn, where this module lives now; called, it is `train` (dvsot.lazy says why).
+"""Re-exports sctn.training.snn, where this module lives now; called, it is `train` (dvsot.core.lazy says why).
 
 The package's public `train` is this module, so its old import path stays.
 """
 
-from dvsot.lazy import callable_module
+from dvsot.core.lazy import callable_module
 from sctn.training.snn import *  # noqa: F401,F403
 from sctn.training.snn import train  # noqa: F401
 

@@ -15,8 +15,8 @@ from typing import Mapping
 import numpy as np
 
 from benchmarks.evaluation.metrics import FAILURE_IOU  # the protocol's failure threshold, drawn as a reference line
-from dvsot.dataset.safe_names import plot_text  # sequence and tracker names are free text: no mathtext, one line
-from dvsot.defaults import SEGMENT_US
+from benchmarks.evaluation.safe_names import plot_text  # names are free text: no mathtext, one line
+from dvsot.core.defaults import SEGMENT_US
 
 
 def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png: str | os.PathLike,

@@ -22,7 +22,7 @@ ATTRIBUTE_FILES = ("attributes.md", "attributes.json", "attributes.png")  # benc
 
 def video_name(sequence: str) -> str:
     """The report's file for a sequence's video: the name made safe as a file name (no '/', '..', control chars)."""
-    from dvsot.dataset.safe_names import file_stem
+    from benchmarks.evaluation.safe_names import file_stem
 
     return file_stem(sequence) + ".gif"
 

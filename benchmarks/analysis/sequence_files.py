@@ -27,7 +27,7 @@ import numpy as np
 from benchmarks.evaluation.metrics import FAILURE_IOU
 from benchmarks.evaluation.protocol import SequenceResult
 from benchmarks.analysis.tables import write_text_atomic
-from dvsot.dataset.safe_names import file_stem
+from benchmarks.evaluation.safe_names import file_stem
 
 
 def _box(row: np.ndarray) -> str:
@@ -76,7 +76,7 @@ def result_paths(out_dir: Path, tracker: str, sequence: str, vot: bool) -> dict[
 def per_sequence_files(trackers: list[str], sequences: dict[str, str | Path], protocol: str = "ar") -> list[Path]:
     """Every per-sequence file a run of these trackers on these sequences may write (relative to its directory);
     UserError if two runs would write one file (names that differ but are made safe to the same file name)."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     owner: dict[Path, tuple[str, str]] = {}
     for t in trackers:

@@ -17,7 +17,7 @@ from typing import Any, Iterator
 
 from benchmarks.evaluation.metrics import ALL, pooled, scores
 from benchmarks.evaluation.protocol import SequenceResult
-from dvsot.dataset.safe_names import latex_text, markdown_cell  # sequence and tracker names are free text
+from benchmarks.evaluation.safe_names import latex_text, markdown_cell  # sequence and tracker names are free text
 
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dvsot.events import EventBatch
-from dvsot.defaults import SEGMENT_US
+from dvsot.core.defaults import SEGMENT_US
 
 
 def atsltd_frame(events: EventBatch, width: int, height: int, window_us: int = SEGMENT_US) -> np.ndarray:

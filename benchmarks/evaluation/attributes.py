@@ -194,7 +194,7 @@ def _f(v: float) -> str:
 def format_attributes(summary: dict, protocol: str = "ar") -> str:
     """A Markdown table, a row per tracker, a column per attribute beside 'all': ARscore (A / R), or AUC (P@20)
     for one-pass runs; the counted segments under each header."""
-    from dvsot.dataset.safe_names import markdown_cell
+    from benchmarks.evaluation.safe_names import markdown_cell
 
     from benchmarks.evaluation.ope import PRECISION_PX
 
@@ -238,7 +238,7 @@ def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar"
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from dvsot.dataset.safe_names import plot_text
+    from benchmarks.evaluation.safe_names import plot_text
     from dvsot.runtime.outputs import replacing
 
     cols = _columns(summary)

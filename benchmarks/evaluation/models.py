@@ -24,7 +24,7 @@ def error_text(exc: BaseException) -> str:
 def load_sctn_checkpoint(path: str | os.PathLike | None):
     """The SCTN model of a checkpoint (None: the shipped one), built with its state dict; any problem is a
     UserError naming the file."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from sctn.checkpoint import default_checkpoint_path, load_checkpoint
 
     try:

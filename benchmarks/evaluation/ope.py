@@ -22,7 +22,7 @@ import numpy as np
 
 from benchmarks.evaluation.metrics import ALL
 from benchmarks.evaluation.protocol import SequenceResult
-from dvsot.dataset.safe_names import markdown_cell  # sequence and tracker names are free text
+from benchmarks.evaluation.safe_names import markdown_cell  # sequence and tracker names are free text
 
 IOU_THRESHOLDS = np.linspace(0.0, 1.0, 21)
 PIXEL_THRESHOLDS = np.arange(0, 51, dtype=np.float64)
@@ -112,7 +112,7 @@ def plot_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from dvsot.dataset.safe_names import plot_text
+    from benchmarks.evaluation.safe_names import plot_text
     from dvsot.runtime.outputs import replacing
 
     written = []

@@ -40,7 +40,7 @@ class Plan:
 def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
     """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
     from dvsot.scene import yaml_value
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     out: dict[str, dict] = {}
     for spec in specs:
@@ -57,7 +57,7 @@ def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
 def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
     """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), the default data if no --data."""
     from benchmarks.evaluation.runner import find_sequences
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     if specs is None:
         if not Path(DEFAULT_DATA).is_dir():
@@ -91,7 +91,7 @@ def _option_key(exc: BaseException, options: dict) -> str | None:
 
 def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
     """The one-line UserError for a tracker that its --option values did not build."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     from benchmarks.evaluation.models import error_text
 
@@ -111,7 +111,7 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
 def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
     """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
     from benchmarks.trackers import get_tracker
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     for name in trackers:
         try:
@@ -146,11 +146,11 @@ def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str
 
 
 def check_video(sequence: str, path: Path) -> None:
-    """UserError now if the preview of a sequence would hold more frames in memory than dvsot.limits allows."""
+    """UserError now if the preview of a sequence would hold more frames in memory than dvsot.core.bounds allows."""
     from benchmarks.analysis.report import VIDEO_SEGMENTS
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
-    from dvsot.limits import preview_problem
+    from dvsot.core.errors import UserError
+    from dvsot.core.bounds import preview_problem
 
     with Dataset(path) as ds:
         problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
@@ -182,10 +182,10 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
 
     from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
     from benchmarks.trackers import load_tracker_module, tracker_class
-    from dvsot.errors import UserError
-    from dvsot.dataset.safe_names import file_stem
+    from dvsot.core.errors import UserError
+    from benchmarks.evaluation.safe_names import file_stem
     from dvsot.runtime.outputs import output_dir, run_dir
-    from dvsot.limits import MAX_WORKERS, range_problem
+    from dvsot.core.bounds import MAX_WORKERS, range_problem
 
     no_energy, option_specs = not energy, list(options)
     problem = jobs is not None and range_problem("--jobs", jobs, 1, MAX_WORKERS)

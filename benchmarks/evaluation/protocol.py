@@ -31,7 +31,7 @@ from benchmarks.evaluation.metrics import FAILURE_IOU
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset.boxes import iou_xywh
 from dvsot.dataset import Dataset
-from dvsot.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line
 
 MIN_BOX_PX = 1.0
 

@@ -19,7 +19,7 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
     from benchmarks.evaluation.protocol import run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
     from dvsot.dataset import Dataset
-    from dvsot.errors import exception_line
+    from dvsot.core.errors import exception_line
 
     for m in modules:
         load_tracker_module(m)
@@ -50,7 +50,7 @@ def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None =
     import numpy as np
 
     from dvsot.dataset import Dataset, find_datasets
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     out: dict[str, Path] = {}
     for f in find_datasets(specs, split=split):
@@ -78,7 +78,7 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     from tqdm import tqdm
 
     from benchmarks.trackers import load_tracker_module, tracker_class
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     if jobs < 1:
         raise UserError(f"jobs must be >= 1, got {jobs}")

@@ -331,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def cli(argv: list[str] | None = None) -> int:
     """main, with bad input (exit 2) and a run that could not start (exit 1) as one line on stderr."""
-    from dvsot.errors import RunError, UserError
+    from dvsot.core.errors import RunError, UserError
 
     try:
         return main(argv)

@@ -72,7 +72,7 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
 def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | None = None) -> list[Path]:
     """The kept frames of a sequence (FRAMES_DIR/NNNNNN.npy, in order); UserError unless there is one per render
     sample of the sequence (`samples`, else read from its /boxes)."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     if samples is None:
         from dvsot.dataset import Dataset
@@ -164,7 +164,7 @@ def run(sequence: str | Path, frames_dir: str | Path, trackers: list[str], prese
 def check_segment(sequence: str | Path, segment: int, flag: str) -> None:
     """UserError naming the flag unless `segment` is a segment of the dataset file `sequence`."""
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     with Dataset(sequence) as ds:
         if not 0 <= segment < ds.num_segments:
@@ -175,7 +175,7 @@ def picture(files: dict[str, Path], segment: int, out_png: Path, title: str) -> 
     """One segment's events in each of the files side by side ({panel label: dataset file}); UserError if a file
     does not have that segment or the files' sensors differ."""
     from benchmarks.analysis.pictures import plot_segment_side_by_side
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     try:
         return plot_segment_side_by_side(files, segment, out_png, title=title)
@@ -293,7 +293,7 @@ def main() -> None:
     parser.add_argument("--max-segments", type=int)
     parser.add_argument("--jobs", type=int, default=1)
     args = parser.parse_args()
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     try:
         if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run

@@ -75,8 +75,8 @@ def picture_spec(text: str) -> tuple[str, int]:
 def preset_files(presets: Sequence[str], sequences: Sequence[str]) -> dict[str, dict[str, str]]:
     """{preset: {sequence: its file relative to OUT}}: <preset>/<name>.h5, names made safe as file names;
     UserError if two sequences would share a file."""
-    from dvsot.dataset.safe_names import file_stem
-    from dvsot.errors import UserError
+    from benchmarks.evaluation.safe_names import file_stem
+    from dvsot.core.errors import UserError
 
     owner: dict[str, str] = {}
     for name in sequences:
@@ -91,7 +91,7 @@ def kept_frame_dirs(sequences: dict[str, Path], frames: str | Path) -> dict[str,
     """{sequence: FRAMES/<name>} (dvsot.pipeline.scene_files.keep_dirs' layout for several scenes), each holding one
     frame per render sample; UserError naming the sequences without frames, or the first whose count is off."""
     from benchmarks.experiments.robustness import kept_frames
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     frames = Path(frames)
     if not frames.is_dir():
@@ -111,7 +111,7 @@ def recorded_settings(sequence: str | Path) -> dict:
     """The simulator settings a dataset file was made with (its `simulator` attribute: EventParams' fields, thresholds
     in log units, rates in Hz, times in microseconds); UserError naming the file if it records none."""
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.events import EventParams
 
     with Dataset(sequence) as ds:
@@ -130,7 +130,7 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
     """The whole table into out_dir as one run (see the module docstring); UserError before any work on bad input."""
     from benchmarks.evaluation.plan import plan_benchmark, resolve_data, run_benchmark, run_files
     from benchmarks.experiments.robustness import check_segment, picture as draw_picture, resimulate
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.events import EventParams
     from dvsot.runtime.outputs import owned_run, readable
 
@@ -227,7 +227,7 @@ def format_table(table: SensorTable, description: str) -> str:
     import numpy as np
 
     from benchmarks.evaluation.metrics import ALL
-    from dvsot.dataset.safe_names import markdown_cell
+    from benchmarks.evaluation.safe_names import markdown_cell
 
     head = ["tracker"] + [f"{p} {m}" for p in table.presets for m in METRICS]
     lines = ["# Trackers under the sensor presets", "", description, "",
@@ -290,7 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", help="output directory (default runs/sensor-table-<time>)")
     parser.add_argument("--quiet", action="store_true", help="no progress")
     args = parser.parse_args(argv)
-    from dvsot.errors import RunError, UserError
+    from dvsot.core.errors import RunError, UserError
 
     out = Path(args.out or f"runs/sensor-table-{time.strftime('%Y%m%d-%H%M%S')}")
     try:

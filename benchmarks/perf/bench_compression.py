@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from dvsot.dataset import COMPRESSIONS, Dataset, DatasetWriter
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 
 def rewrite(src: Path, dst: Path, compression: str | None) -> None:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import Callable
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 # Built-ins are imported on first use, so listing trackers does not import torch or OpenCV.
 BUILTIN: dict[str, str] = {

@@ -8,7 +8,7 @@ from pydantic import Field
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
-from dvsot.strict import Int, Strict
+from dvsot.core.strict import Int, Strict
 from sctn.params import SCTNParams
 
 BENCH_FIELDS = {"checkpoint", "energy_every"}  # the benchmark's own options; the others are the tracker's

@@ -11,7 +11,7 @@ import warnings
 
 from dvsot import __version__
 from dvsot.runtime import interrupts
-from dvsot.errors import RunError, UserError
+from dvsot.core.errors import RunError, UserError
 
 # name -> module; the module's docstring's first line is the help text.
 COMMANDS: dict[str, str] = {

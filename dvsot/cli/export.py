@@ -20,7 +20,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot export`."""
     p.add_argument("file", help="dataset file (.h5)")
     p.add_argument("-o", "--output", required=True, help="events file to write: .aedat4, .raw, .dat, .csv or .txt")
-    from dvsot.defaults import EXPORT_EVT_VERSION
+    from dvsot.core.defaults import EXPORT_EVT_VERSION
 
     default = EXPORT_EVT_VERSION.removeprefix("evt")
     p.add_argument("--evt", choices=["2", "3"], default=default,

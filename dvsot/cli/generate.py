@@ -34,7 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _overrides(args: argparse.Namespace) -> dict:
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     out = {}
     if args.duration is not None:
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     import glob
     import json
 
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     paths: list[str] = []
     for spec in args.scenes:
@@ -74,13 +74,13 @@ def run(args: argparse.Namespace) -> int:
         if not found:
             raise UserError(f"{spec}: no scene files match")
         paths += found
-    from dvsot import limits as validate
+    from dvsot.core import bounds
 
     if args.output and args.out_dir:
         raise UserError("-o names the output file and --out-dir a directory for <name>.h5 files: give one of them")
-    for problem in (validate.range_problem("--jobs", args.jobs, 1, validate.MAX_WORKERS),
-                    args.variants is not None and validate.range_problem("--variants", args.variants, 1,
-                                                                          validate.MAX_VARIANTS)):
+    for problem in (bounds.range_problem("--jobs", args.jobs, 1, bounds.MAX_WORKERS),
+                    args.variants is not None and bounds.range_problem("--variants", args.variants, 1,
+                                                                          bounds.MAX_VARIANTS)):
         if problem:  # before any scene is read or drawn
             raise UserError(problem)
     overrides = _overrides(args)
@@ -104,7 +104,7 @@ def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
     import sys
 
     from dvsot.pipeline.many_scenes import generate_many, many_tasks
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.pipeline.scene_runner import summary_line
 
     if args.output or args.keep_frames:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import argparse
 
-from dvsot.defaults import IMPORT_EVT_VERSION, SEGMENT_US
+from dvsot.core.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -55,11 +55,11 @@ _LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "box_times_from_fr
 def run(args: argparse.Namespace) -> int:
     """Import the events and boxes; print a one-line summary."""
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.interop.event_files import parse_size
     from dvsot.runtime.outputs import output_file
     from dvsot.interop.recordings import import_recording
-    from dvsot.limits import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
+    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
     problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
     if problem:

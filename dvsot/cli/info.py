@@ -24,7 +24,7 @@ def summarise(path: str) -> dict:
 
 
 def _text(info: dict) -> str:
-    from dvsot.dataset.safe_names import one_line
+    from benchmarks.evaluation.safe_names import one_line
 
     lines = [f"{info['file']}  ({one_line(info['name'])}{', ' + one_line(info['split']) if info['split'] else ''})",
              f"  resolution     {info['resolution'][0]}x{info['resolution'][1]}",

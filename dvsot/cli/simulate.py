@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from dvsot.defaults import SEGMENT_US
+from dvsot.core.defaults import SEGMENT_US
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -74,7 +74,7 @@ def _event_params(args: argparse.Namespace):
     """The simulator parameters from the flags over the preset's; a bad value raises UserError naming its flag."""
     from pydantic import ValidationError
 
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.events.simulator import EventParams, param_problem
 
     values = dict(preset=args.preset, cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
@@ -92,9 +92,9 @@ def _check_flags(args: argparse.Namespace) -> None:
     """Range checks of the numeric flags EventParams does not cover."""
     import math
 
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.pipeline.simulate import MAX_FPS
-    from dvsot.limits import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
+    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
     if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
         raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")

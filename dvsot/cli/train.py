@@ -89,11 +89,11 @@ MAX_WIDTH = 1024  # --channels and --fc: weights and activations grow with them 
 
 def _network_config(args: argparse.Namespace):
     """The network's layer sizes from --channels / --fc (NetworkConfig's defaults otherwise); the twin's TwinConfig."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from sctn.ann import TwinConfig
     from sctn.network import NetworkConfig
 
-    from dvsot.limits import MAX_TAIL_STEPS, range_problem
+    from dvsot.core.bounds import MAX_TAIL_STEPS, range_problem
 
     tail = args.tail_steps or 0
     problem = range_problem("--tail-steps", tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
@@ -115,7 +115,7 @@ def _network_config(args: argparse.Namespace):
 def _train_config(args: argparse.Namespace):
     """The model's training settings from the flags; a flag the model lacks or an out-of-range value raises
     UserError naming the flag."""
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from sctn.training.snn import TrainConfig, TrainConfigError
 
     for dest, models in ONLY.items():
@@ -186,11 +186,11 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from dvsot.dataset import find_datasets
-    from dvsot.errors import RunError, UserError
+    from dvsot.core.errors import RunError, UserError
     from sctn.checkpoint import check_checkpoint_output, save_checkpoint
     from sctn.training.snn import provenance
 
-    from dvsot.limits import MAX_THREADS, range_problem
+    from dvsot.core.bounds import MAX_THREADS, range_problem
 
     cfg = _train_config(args)
     problem = args.threads is not None and range_problem("--threads", args.threads, 1, MAX_THREADS)

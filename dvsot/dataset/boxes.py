@@ -1,8 +1,11 @@
-"""Box geometry in pixels (xywh, top-left corner and size): IoU, and boxes fitted to binary masks."""
+"""Box geometry in pixels (xywh, top-left corner and size): IoU, boxes fitted to binary masks, and the check of
+the boxes a file or a recording holds."""
 
 from __future__ import annotations
 
 import numpy as np
+
+from dvsot.core.bounds import MIN_BOX_SIDE_PX
 
 
 def iou_xywh(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -101,3 +104,24 @@ def match_annotations(t_annotations: np.ndarray, segment_us: int, num_segments: 
     segs, first = np.unique(seg[order], return_index=True)
     out[segs] = order[first]
     return out
+
+
+def box_problem(xywh: np.ndarray, width: int, height: int, row_name=lambda i: f"row {i}") -> str | None:
+    """What is wrong with (N, 4) boxes (xywh pixels) on a width x height sensor, or None.
+
+    A box is four NaNs (no target) or finite with w, h >= MIN_BOX_SIDE_PX, inside the sensor widened by its
+    own size on every side ([-width, 2 width] x [-height, 2 height]): further out, nothing of it can be seen.
+    """
+    b = np.asarray(xywh, np.float64).reshape(-1, 4)
+    absent = np.isnan(b).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        bad = ~absent & (~np.isfinite(b).all(axis=1) | (b[:, 2] < MIN_BOX_SIDE_PX) | (b[:, 3] < MIN_BOX_SIDE_PX)
+                         | (b[:, 0] < -width) | (b[:, 1] < -height)
+                         | (b[:, 0] + b[:, 2] > 2 * width) | (b[:, 1] + b[:, 3] > 2 * height))
+    if not bad.any():
+        return None
+    i = int(np.flatnonzero(bad)[0])
+    x, y, w, h = (f"{v:g}" for v in b[i])
+    return (f"{row_name(i)} is x={x} y={y} w={w} h={h}; a box is finite with w, h >= {MIN_BOX_SIDE_PX:g} px and inside "
+            f"[{-width}, {2 * width}] x [{-height}, {2 * height}] px (the {width}x{height} sensor and its own size "
+            f"around it), or four NaNs for no target")

@@ -8,9 +8,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dvsot import limits as validate
+from dvsot.core import bounds
 from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
-from dvsot.errors import exception_line
+from dvsot.core.errors import exception_line
 
 _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers", "S": "fixed-length byte strings",
                "f": "floats"}
@@ -18,6 +18,13 @@ _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"
 
 class Damaged(Exception):
     """A broken invariant of the file format; Dataset turns it into a UserError naming the file."""
+
+
+def rows_problem(name: str, rows: int, bound: int, why: str) -> str | None:
+    """A message if dataset /name has more than `bound` rows (a bound on what one file can make us read), or None."""
+    if rows > bound:
+        return f"/{name} has {rows} rows, more than the bound of {bound} ({why})"
+    return None
 
 
 def check_layout(f: h5py.File) -> None:
@@ -100,13 +107,13 @@ def int_attr(attrs: dict[str, Any], name: str, minimum: int, maximum: int | None
 
 
 def check_sizes(f: h5py.File) -> None:
-    """Raise Damaged if a dataset the reader loads whole is longer than dvsot.limits's bounds allow."""
-    limits = {"events/ms_to_idx": (validate.MAX_DURATION_US // 1000 + 1, f"{validate.MAX_DURATION_S} s per file"),
-              "segments/xywh": (validate.MAX_DURATION_US // validate.MIN_SEGMENT_US,
-                                f"{validate.MAX_DURATION_S} s in segments of at least {validate.MIN_SEGMENT_US} us"),
-              "boxes/t": (validate.MAX_BOX_ROWS, "box samples per file")}
+    """Raise Damaged if a dataset the reader loads whole is longer than dvsot.core.bounds allows."""
+    limits = {"events/ms_to_idx": (bounds.MAX_DURATION_US // 1000 + 1, f"{bounds.MAX_DURATION_S} s per file"),
+              "segments/xywh": (bounds.MAX_DURATION_US // bounds.MIN_SEGMENT_US,
+                                f"{bounds.MAX_DURATION_S} s in segments of at least {bounds.MIN_SEGMENT_US} us"),
+              "boxes/t": (bounds.MAX_BOX_ROWS, "box samples per file")}
     for name, (bound, why) in limits.items():
-        problem = validate.rows_problem(name, f[name].shape[0], bound, why)
+        problem = rows_problem(name, f[name].shape[0], bound, why)
         if problem:
             raise Damaged(problem)
 

@@ -44,13 +44,13 @@ of events it loads (time order, time window, pixel range, 0/1 flags) on the data
 `Dataset.chunks` streams and checks the whole file. Any violation is a one-line UserError naming the
 file and the dataset or attribute. Files written before checksums were added still load.
 
-Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.limits),
+Box values are checked on open too (finite, w, h > 0 or four NaNs, near the sensor: dvsot.dataset.boxes),
 and the writer stores a SHA-256 of the root attributes' canonical JSON as root attribute
 `attrs_sha256`, so a changed or corrupted attribute is an error on open; files written before the
 digest (no `attrs_sha256`) load without that check. /t_offset, a scalar HDF5 cannot checksum, is
 repeated as root attribute `t_offset_us`, which the digest covers; the reader compares the two (files
 written before that attribute load without the comparison). Whole datasets read into memory are bounded in
-rows (dvsot.limits), and every dataset must store all the chunks its shape declares (a chunk never
+rows (dvsot.core.bounds), and every dataset must store all the chunks its shape declares (a chunk never
 written reads as zeros), so a damaged or hostile file cannot make the reader allocate gigabytes.
 
 A text root attribute longer than TEXT_ATTR_BYTES (a scene file of up to 1 MB, stored verbatim) is a
@@ -68,7 +68,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dvsot import limits as validate
+from dvsot.core import bounds
 from dvsot.events import EventBatch
 
 FORMAT = "dvsot"
@@ -153,14 +153,14 @@ TEXT_ATTR_BYTES = 16 << 10  # longer text goes to TEXT_GROUP: an HDF5 attribute 
 
 
 def attrs_problem(attrs: dict[str, Any]) -> str | None:
-    """What keeps root attributes from being stored (text over validate.MAX_TEXT_ATTR_BYTES, a long text under a
+    """What keeps root attributes from being stored (text over bounds.MAX_TEXT_ATTR_BYTES, a long text under a
     name that cannot be a dataset's), or None."""
     for key, value in attrs.items():
         value = encode_attr(value)
         size = len(value.encode("utf-8")) if isinstance(value, str) else 0
-        if size > validate.MAX_TEXT_ATTR_BYTES:
+        if size > bounds.MAX_TEXT_ATTR_BYTES:
             return (f"root attribute {key!r} holds {size} bytes of text, more than the bound of "
-                    f"{validate.MAX_TEXT_ATTR_BYTES} for one attribute")
+                    f"{bounds.MAX_TEXT_ATTR_BYTES} for one attribute")
         if size > TEXT_ATTR_BYTES and ("/" in key or key in (".", "")):
             return f"root attribute {key!r}: a long text needs a name without '/'"
     return None
@@ -197,9 +197,9 @@ def read_attrs(f: h5py.File) -> dict[str, Any]:
         where = f"/{TEXT_GROUP}/{key}"
         if not isinstance(obj, h5py.Dataset) or obj.shape != () or obj.dtype.kind != "S":
             raise ValueError(f"{where} is not a fixed-length text scalar")
-        if obj.dtype.itemsize > validate.MAX_TEXT_ATTR_BYTES:  # before reading it
+        if obj.dtype.itemsize > bounds.MAX_TEXT_ATTR_BYTES:  # before reading it
             raise ValueError(f"{where} holds {obj.dtype.itemsize} bytes, more than the bound of "
-                             f"{validate.MAX_TEXT_ATTR_BYTES} for a text attribute")
+                             f"{bounds.MAX_TEXT_ATTR_BYTES} for a text attribute")
         if key in attrs:
             raise ValueError(f"{where} repeats root attribute {key!r}")
         attrs[key] = decode_attr(obj[()])

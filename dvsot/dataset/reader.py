@@ -11,11 +11,13 @@ from typing import Any, Iterator
 import h5py
 import numpy as np
 
-from dvsot import limits as validate
+from dvsot.core import bounds
+from dvsot.dataset.boxes import box_problem
+from dvsot.dataset.digest import DIGEST_ATTR, digest_problem
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
 from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
                                       check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem)
-from dvsot.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line
 from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
 
@@ -25,7 +27,7 @@ class Dataset:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
-        kind = validate.file_kind_problem(self.path)
+        kind = bounds.file_kind_problem(self.path)
         if kind:
             raise UserError(f"{self.path}: " + ("no such dataset file" if kind == "no such file" else
                                                 f"{kind}, not a dataset file"))
@@ -61,9 +63,9 @@ class Dataset:
             raise Damaged(str(exc)) from None
         self.width = int_attr(self.attrs, "width", 1, MAX_PIXELS)
         self.height = int_attr(self.attrs, "height", 1, MAX_PIXELS)
-        if self.width * self.height > validate.MAX_SENSOR_PIXELS:
+        if self.width * self.height > bounds.MAX_SENSOR_PIXELS:
             raise Damaged(f"root attributes 'width' x 'height' are {self.width}x{self.height}, more than the bound "
-                           f"of {validate.MAX_SENSOR_PIXELS} pixels")
+                           f"of {bounds.MAX_SENSOR_PIXELS} pixels")
         self.segment_us = int_attr(self.attrs, "segment_us", 1)
         self.duration_us = int_attr(self.attrs, "duration_us", 0)
         self.format_version = version
@@ -117,16 +119,16 @@ class Dataset:
             self._seg_absent = self._seg_absent.astype(bool)
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
-            problem = None if rows is None else validate.box_problem(rows, self.width, self.height)
+            problem = None if rows is None else box_problem(rows, self.width, self.height)
             if problem:
                 raise Damaged(f"/{name} {problem}")
-        problem = validate.digest_problem(self.attrs)
+        problem = digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
         # /t_offset is a scalar (no chunk, so no Fletcher-32): its copy among the digested attributes guards it
         if "t_offset_us" in self.attrs and int_attr(self.attrs, "t_offset_us", -(2**63)) != self.t_offset_us:
             raise Damaged(f"/t_offset is {self.t_offset_us} us, but root attribute 't_offset_us' (covered by "
-                          f"'{validate.DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
+                          f"'{DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
         self._object_table(f)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
@@ -253,9 +255,9 @@ class Dataset:
         i0, i1 = self._index_at(t0_us), self._index_at(t1_us)
         if i1 <= i0:
             return EventBatch.empty()
-        if i1 - i0 > validate.MAX_WINDOW_EVENTS:  # before the columns are read: a crafted file could hold billions
+        if i1 - i0 > bounds.MAX_WINDOW_EVENTS:  # before the columns are read: a crafted file could hold billions
             raise UserError(f"{self.path}: {t0_us}..{t1_us} us holds {i1 - i0} events, more than the bound of "
-                            f"{validate.MAX_WINDOW_EVENTS} events read at once")
+                            f"{bounds.MAX_WINDOW_EVENTS} events read at once")
         return self._batch(i0, i1, max(t0_us, 0), min(t1_us, self.duration_us), "/events/ms_to_idx and duration_us")
 
     def chunks(self, step: int = 1 << 22) -> Iterator[EventBatch]:

@@ -47,7 +47,7 @@ class SegmentDataset:
         for k, path in enumerate(self.paths):
             with Dataset(path) as ds:
                 if self.labels and ds.objects is None:
-                    from dvsot.errors import UserError
+                    from dvsot.core.errors import UserError
 
                     raise UserError(f"{path}: no per-event labels (/events/object), which labels=True asks for")
                 keep = ds.segment_scored()

@@ -11,14 +11,16 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dvsot import limits as validate
+from dvsot.core import bounds
+from dvsot.dataset.boxes import box_problem
+from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
 from dvsot.runtime.threads import OrderedWorker
 from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, BoxTrack, attrs_problem, read_attrs,
                                   write_attr, write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.dataset.segment_truth import SegmentTruth, segment_truth
-from dvsot.defaults import SEGMENT_US
-from dvsot.errors import RunError, UserError
+from dvsot.core.defaults import SEGMENT_US
+from dvsot.core.errors import RunError, UserError
 from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
 from dvsot.dataset.h5chunks import encode_chunk
@@ -41,11 +43,11 @@ class DatasetWriter:
                  attrs: dict[str, Any] | None = None, compression: str | None = "gzip",
                  checksum: bool = True, t_offset_us: int = 0, annotated: bool = False,
                  objects: list[dict] | None = None) -> None:
-        if width <= 0 or height <= 0 or width * height > validate.MAX_SENSOR_PIXELS:
-            raise ValueError(f"width and height must be positive, at most {validate.MAX_SENSOR_PIXELS} pixels in "
+        if width <= 0 or height <= 0 or width * height > bounds.MAX_SENSOR_PIXELS:
+            raise ValueError(f"width and height must be positive, at most {bounds.MAX_SENSOR_PIXELS} pixels in "
                              f"all, got {width}x{height}")
-        if segment_us < validate.MIN_SEGMENT_US:
-            raise ValueError(f"segment_us must be at least {validate.MIN_SEGMENT_US}, got {segment_us}")
+        if segment_us < bounds.MIN_SEGMENT_US:
+            raise ValueError(f"segment_us must be at least {bounds.MIN_SEGMENT_US}, got {segment_us}")
         self.path = Path(path)
         problem = attrs_problem(attrs or {})
         if problem:  # before any work: a scene's text is known before its frames are rendered
@@ -164,8 +166,8 @@ class DatasetWriter:
             v = np.asarray(values)
             if v.max() >= limit or (v.dtype.kind in "if" and v.min() < 0):
                 raise ValueError(f"event {name} must lie in 0..{limit - 1}, got {v.min()}..{v.max()}")
-        if t[-1] >= validate.MAX_DURATION_US:  # before ms_to_idx grows: an epoch time would ask for terabytes
-            raise ValueError(f"an event at {int(t[-1])} us lies beyond the {validate.MAX_DURATION_S} s a file holds; "
+        if t[-1] >= bounds.MAX_DURATION_US:  # before ms_to_idx grows: an epoch time would ask for terabytes
+            raise ValueError(f"an event at {int(t[-1])} us lies beyond the {bounds.MAX_DURATION_S} s a file holds; "
                              f"rebase the timestamps and keep the start in t_offset_us")
         if self._has_signal is None:
             self._has_signal = batch.signal is not None
@@ -186,8 +188,8 @@ class DatasetWriter:
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
         last_ms = int(t[-1] // 1000)
         if last_ms >= self._next_ms:
-            bounds = np.arange(self._next_ms, last_ms + 1, dtype=np.int64) * 1000
-            idx = self.num_events + np.searchsorted(t, bounds, side="left")
+            ms_starts = np.arange(self._next_ms, last_ms + 1, dtype=np.int64) * 1000
+            idx = self.num_events + np.searchsorted(t, ms_starts, side="left")
             self._ms_to_idx.append(idx.astype(np.uint64))
             self._next_ms = last_ms + 1
         self._last_t = int(t[-1])
@@ -318,7 +320,7 @@ class DatasetWriter:
         if len(t) > 1 and np.any(np.diff(t) <= 0):
             raise ValueError("box sample times must be strictly increasing")
         for what, rows in (("xywh", xywh), ("xywh_visible", visible)):
-            problem = validate.box_problem(rows, self.width, self.height)
+            problem = box_problem(rows, self.width, self.height)
             if problem:
                 raise ValueError(f"boxes {what}: {problem}")
         visibility = np.concatenate(self._visibility) if self._visibility and self._visibility[0] is not None else None
@@ -331,8 +333,8 @@ class DatasetWriter:
             candidates = [self._last_t + 1 if self._count else 0, int(box_t[-1]) if len(box_t) else 0]
             duration_us = max(candidates)
         duration_us = int(duration_us)
-        if duration_us > validate.MAX_DURATION_US:
-            raise ValueError(f"duration {duration_us} us exceeds the bound of {validate.MAX_DURATION_S} s per file")
+        if duration_us > bounds.MAX_DURATION_US:
+            raise ValueError(f"duration {duration_us} us exceeds the bound of {bounds.MAX_DURATION_S} s per file")
         if self._count and self._last_t >= duration_us:
             raise ValueError(f"an event at {self._last_t} us lies beyond the duration {duration_us} us")
         if len(box_t) and not (0 <= box_t[0] and box_t[-1] <= duration_us):
@@ -383,7 +385,7 @@ class DatasetWriter:
                      t_offset_us=self.t_offset_us, ground_truth="annotations" if self.annotated else "rendered")
         write_attrs(f, attrs)
         # over the values as a reader decodes them, so both sides hash the same thing
-        write_attr(f.attrs, validate.DIGEST_ATTR, validate.attrs_digest(read_attrs(f)))
+        write_attr(f.attrs, DIGEST_ATTR, attrs_digest(read_attrs(f)))
 
     def _commit(self) -> None:
         """Close the temp file, check it read back as written, and rename it into place (or leave that to the

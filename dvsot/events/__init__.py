@@ -2,7 +2,7 @@
 and presets (presets), the event batch (batch), object labels per event (labels) and the frame sources
 `dvsot simulate` reads (frame_sources); the names callers use, each imported on first use."""
 
-from dvsot.lazy import lazy_attributes
+from dvsot.core.lazy import lazy_attributes
 
 _API = {
     "EventSimulator": "dvsot.events.simulator",

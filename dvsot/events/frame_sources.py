@@ -26,8 +26,8 @@ import cv2
 import numpy as np
 
 from dvsot.runtime.threads import read_ahead
-from dvsot.errors import UserError
-from dvsot.limits import MAX_SENSOR_PIXELS, file_kind_problem
+from dvsot.core.errors import UserError
+from dvsot.core.bounds import MAX_SENSOR_PIXELS, file_kind_problem
 from dvsot.events import CodedFrame, log_intensity
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}

@@ -30,7 +30,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dvsot.events.batch import EventBatch
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 BACKGROUND_ID = 0
 TARGET_ID = 1

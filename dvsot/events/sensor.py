@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events.batch import NOISE_KINDS, EventBatch
 from dvsot.events.kernel import crossed
 

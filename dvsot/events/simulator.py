@@ -43,8 +43,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from dvsot.errors import UserError
-from dvsot.limits import MAX_CONTRAST, MAX_DURATION_US
+from dvsot.core.errors import UserError
+from dvsot.core.bounds import MAX_CONTRAST, MAX_DURATION_US
 from dvsot.events.batch import STRUCTURED_DTYPE, EventBatch  # noqa: F401  (re-exported: dvsot.events.EventBatch)
 
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)

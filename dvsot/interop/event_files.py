@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
-from dvsot.errors import UserError, exception_line
-from dvsot.limits import sensor_size_problem
+from dvsot.core.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
+from dvsot.core.errors import UserError, exception_line
+from dvsot.core.bounds import sensor_size_problem
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
@@ -75,7 +75,7 @@ def read_event_file(path: str | os.PathLike, size: tuple[int, int] | None = None
     file's first line is a header (else only dvsot's own CSV header or TXT size line is one)."""
     p = Path(path)
     kind = event_format(p, "events file")
-    from dvsot.limits import file_kind_problem
+    from dvsot.core.bounds import file_kind_problem
 
     problem = file_kind_problem(p)
     if problem:

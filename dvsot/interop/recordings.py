@@ -27,9 +27,9 @@ from typing import Mapping
 
 import numpy as np
 
-from dvsot.errors import UserError, label
+from dvsot.core.errors import UserError, label
 from dvsot.interop.event_files import EventFile, frame_times, read_event_file
-from dvsot.defaults import IMPORT_EVT_VERSION, SEGMENT_US
+from dvsot.core.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time
@@ -77,7 +77,7 @@ def _is_number(text: str) -> bool:
 
 def read_box_file(path: str | os.PathLike, width: int, height: int) -> BoxFile:
     """Boxes of a box file (x,y,w,h or t_s,x,y,w,h per line), checked against a width x height sensor."""
-    from dvsot.limits import box_problem
+    from dvsot.dataset.boxes import box_problem
 
     p = Path(path)
     rows, lines = _numbers(p, "boxes x,y,w,h or t_s,x,y,w,h", (4, 5))
@@ -140,7 +140,7 @@ def _check_times(ev: EventFile, boxes: BoxFile | None, box_t: np.ndarray | None,
     """The time origin (us): the earliest event or annotation; UserError when the times cannot share one file.
 
     row: what the times file's entries are called in messages (a row of a text file, a frame of a frame track)."""
-    from dvsot.limits import MAX_DURATION_S, MAX_DURATION_US
+    from dvsot.core.bounds import MAX_DURATION_S, MAX_DURATION_US
 
     source = times_path or (boxes.path if boxes else None)
     if box_t is not None:

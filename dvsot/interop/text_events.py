@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 _ROWS_PER_CHUNK = 1 << 20  # rows formatted at a time (about 60 MB of scratch)
 # "0000" .. "9999" as one little-endian u4 each: four digits written per store
@@ -177,7 +177,7 @@ def read_text(path: str | os.PathLike, kind: str, header: bool = False) -> tuple
     Every line after the header is an event (blank and # lines aside): one that is not fails naming its
     line. Times are exact or refused, never truncated or rounded; `header` skips a CSV's first line.
     """
-    from dvsot.limits import sensor_size_problem
+    from dvsot.core.bounds import sensor_size_problem
 
     p = Path(path)
     skip, size = _header(p, kind, header)

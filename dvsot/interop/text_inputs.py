@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.errors import UserError
-from dvsot.limits import box_problem, file_kind_problem
+from dvsot.core.errors import UserError
+from dvsot.core.bounds import file_kind_problem
+from dvsot.dataset.boxes import box_problem
 
 MAX_SECONDS = 1e9  # keeps timestamps in microseconds well inside int64
 

@@ -16,7 +16,7 @@ from dvsot.runtime import interrupts
 from dvsot.dataset.boxes import box_from_mask, mask_visibility
 from dvsot.scene import SceneConfig
 from dvsot.dataset.format import attrs_problem
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events.labels import LabelledFrame, object_table
 from dvsot.events import EventSimulator
 from dvsot.runtime.outputs import run_outputs, writing

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Callable, Mapping
 
 from dvsot.scene import SceneConfig, asset_paths, load_scene, read_scene_text, read_yaml
-from dvsot.errors import UserError, label
+from dvsot.core.errors import UserError, label
 from dvsot.runtime.outputs import output_dir, output_file
 from dvsot.dataset.preview import check_preview_size
 from dvsot.pipeline.scene_runner import Manifest, SceneTask, run_scenes

@@ -1,7 +1,7 @@
 """Scene files -> one dataset file each: every scene and output path checked first, then rendered here or on local:N.
 
 Messages name the settings by their parameter names (output, out_dir, preview, keep_frames, resolution);
-a command passes {name: flag} as `labels` to have its flags named instead (dvsot.errors.label).
+a command passes {name: flag} as `labels` to have its flags named instead (dvsot.core.errors.label).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable, Mapping
 
-from dvsot.errors import UserError, label
+from dvsot.core.errors import UserError, label
 
 
 def generate_one(scene_path: str, out_path: str, overrides: dict, preview: bool, quiet: bool,

@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 from dvsot.runtime.dask_tasks import (Cluster, Failure, host_of, host_workers, map_tasks, parse_scheduler, run_tasks,
                            worker_address)
-from dvsot.errors import exception_line
+from dvsot.core.errors import exception_line
 from dvsot.runtime.outputs import replacing
 
 __all__ = ["SceneTask", "Manifest", "render_task", "warm_up", "run_scenes", "output_is_done", "summary_line",

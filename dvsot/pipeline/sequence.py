@@ -14,8 +14,8 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from dvsot.dataset import DatasetWriter
-from dvsot.defaults import SEGMENT_US
-from dvsot.errors import UserError
+from dvsot.core.defaults import SEGMENT_US
+from dvsot.core.errors import UserError
 from dvsot.events.labels import EventLabeller, LabelledFrame
 from dvsot.events import EventSimulator
 

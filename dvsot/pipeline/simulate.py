@@ -14,8 +14,8 @@ from typing import Mapping
 
 import numpy as np
 
-from dvsot.defaults import SEGMENT_US
-from dvsot.errors import UserError, label
+from dvsot.core.defaults import SEGMENT_US
+from dvsot.core.errors import UserError, label
 from dvsot.events import EventParams
 from dvsot.interop.text_inputs import read_box_csv, read_timestamps
 
@@ -26,7 +26,7 @@ def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathL
                 source_fps: float | None = None, source: str = "frames",
                 labels: Mapping[str, str] | None = None) -> np.ndarray:
     """Times in microseconds of `count` frames: from a timestamps file (seconds), else fps, else the source's rate."""
-    from dvsot.limits import MAX_DURATION_S
+    from dvsot.core.bounds import MAX_DURATION_S
 
     if timestamps is not None:
         t_us = read_timestamps(timestamps, count)
@@ -60,7 +60,7 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     from dvsot.events.frame_sources import open_frames
     from dvsot.runtime.outputs import output_file
     from dvsot.pipeline.sequence import write_sequence
-    from dvsot.limits import MAX_SENSOR_PIXELS
+    from dvsot.core.bounds import MAX_SENSOR_PIXELS
 
     params = params if params is not None else EventParams()
     inputs = [Path(p) for p in (frames, timestamps, boxes) if p]

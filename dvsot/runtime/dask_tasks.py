@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from dvsot.errors import RunError, UserError, exception_line
-from dvsot.limits import MAX_WORKERS
+from dvsot.core.errors import RunError, UserError, exception_line
+from dvsot.core.bounds import MAX_WORKERS
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ class Failure:
 
     error: str
     worker: str | None = None
-    kind: str | None = None  # "user" (bad input, dvsot.errors.UserError), "run" (RunError), "interrupted", None
+    kind: str | None = None  # "user" (bad input, dvsot.core.errors.UserError), "run" (RunError), "interrupted", None
     message: str | None = None  # a UserError's or RunError's own message, raised again as such here
 
 
@@ -116,9 +116,9 @@ class Cluster:
     def _start_local(self) -> None:
         from distributed import Client, LocalCluster
 
-        from dvsot.runtime import local_workers as localworkers
+        from dvsot.runtime import local_workers
 
-        localworkers.quiet_logs()
+        local_workers.quiet_logs()
         # the scheduler here, no workers of its own: they are this process's children (dvsot.runtime.local_workers)
         self.cluster = LocalCluster(n_workers=0, processes=True, host="127.0.0.1", scheduler_port=0,
                                     dashboard_address=None, silence_logs=logging.CRITICAL,
@@ -126,7 +126,7 @@ class Cluster:
                                     scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         self.client = Client(self.cluster)
         _LOCAL.add(self.client)
-        self.procs = localworkers.start(self.cluster.scheduler_address, self.arg)
+        self.procs = local_workers.start(self.cluster.scheduler_address, self.arg)
         try:
             self.client.wait_for_workers(self.arg, timeout=self.start_timeout_s)
         except TimeoutError:
@@ -135,13 +135,13 @@ class Cluster:
                                + (f"; {len(dead)} exited (status {dead[0]})" if dead else "")) from None
 
     def __exit__(self, *exc) -> None:
-        from dvsot.runtime import local_workers as localworkers
+        from dvsot.runtime import local_workers
 
         try:
             if self.client is not None:
                 self.client.close()
         finally:
-            localworkers.stop(self.procs)  # each running task unwinds (temps removed) before its process exits
+            local_workers.stop(self.procs)  # each running task unwinds (temps removed) before its process exits
             if self.cluster is not None:
                 self.cluster.close()
 
@@ -168,12 +168,12 @@ def host_workers(client) -> dict[str, int]:
 def _guarded(lease: str | None, fn: Callable, *args) -> Any:
     """fn(*args) in a worker, under its run's lease if it has one (dvsot.runtime.staging.LeaseGuard); an exception, an
     interrupt included, comes back as a Failure (no traceback in the worker's log)."""
-    from dvsot.runtime import interrupts, local_workers as localworkers
-    from dvsot.errors import RunError
+    from dvsot.runtime import interrupts, local_workers
+    from dvsot.core.errors import RunError
     from dvsot.runtime.staging import LeaseGuard
 
     guard = LeaseGuard(lease) if lease is not None else None
-    localworkers.task_started()
+    local_workers.task_started()
     try:
         with interrupts.guarded(guard):
             interrupts.check()  # a run stopped before this task began: nothing to do
@@ -186,7 +186,7 @@ def _guarded(lease: str | None, fn: Callable, *args) -> Any:
     finally:
         if guard is not None:
             guard.close()
-        localworkers.task_ended()
+        local_workers.task_ended()
 
 
 def _failure_of(result: Any) -> Failure | None:

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Iterable, Iterator
 
 from dvsot.runtime import interrupts, staging
-from dvsot.errors import RunError, UserError
+from dvsot.core.errors import RunError, UserError
 
 MANIFEST_FORMAT = "dvsot-run"
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}

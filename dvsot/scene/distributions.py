@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from dvsot.scene import Locate
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 KINDS = {"uniform": set(), "normal": {"clip"}, "choice": {"weights"}}
 MAX_COUNT = 1000

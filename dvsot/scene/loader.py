@@ -10,9 +10,9 @@ from typing import Any, Callable
 
 from pydantic import ValidationError
 
-from dvsot import limits as validate, yaml12 as yamlio
+from dvsot.core import bounds, yaml12
 from dvsot.scene.schema import Material, SceneConfig
-from dvsot.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line
 from dvsot.scene.checks import scene_problems
 
 
@@ -29,11 +29,11 @@ def _chosen_error(errors: list[dict]) -> dict:
     return next((e for e in same if not e["type"].endswith("_type")), errors[0])
 
 
-def _line_of(node: yamlio.Node | None, loc: tuple) -> int | None:
+def _line_of(node: yaml12.Node | None, loc: tuple) -> int | None:
     """The 1-based YAML line of the field at loc (or of its nearest existing parent)."""
     line = node.start_mark.line + 1 if node is not None else None
     for key in loc:
-        if isinstance(node, yamlio.MappingNode):
+        if isinstance(node, yaml12.MappingNode):
             found = None
             for k, v in node.value:
                 if k.value == key:
@@ -42,7 +42,7 @@ def _line_of(node: yamlio.Node | None, loc: tuple) -> int | None:
             if found is None:
                 break
             line, node = found[0].start_mark.line + 1, found[1]
-        elif isinstance(node, yamlio.SequenceNode) and isinstance(key, int) and key < len(node.value):
+        elif isinstance(node, yaml12.SequenceNode) and isinstance(key, int) and key < len(node.value):
             node = node.value[key]
             line = node.start_mark.line + 1
         else:
@@ -50,25 +50,75 @@ def _line_of(node: yamlio.Node | None, loc: tuple) -> int | None:
     return line
 
 
+def yaml_text_problem(text: str) -> str | None:
+    """A message if YAML text is larger than MAX_SCENE_BYTES or nested deeper than MAX_YAML_DEPTH (dvsot.core.bounds),
+    or None.
+
+    Runs the YAML scanner (a loop with a stack, no recursion) before any parser that recurses per level.
+    """
+    tokens = yaml12.tokens
+    size = len(text.encode("utf-8", "replace"))
+    if size > bounds.MAX_SCENE_BYTES:
+        return f"{size} bytes, more than the bound of {bounds.MAX_SCENE_BYTES} bytes (1 MB) for a scene file"
+    opening = (tokens.BlockSequenceStartToken, tokens.BlockMappingStartToken, tokens.FlowSequenceStartToken,
+               tokens.FlowMappingStartToken)
+    closing = (tokens.BlockEndToken, tokens.FlowSequenceEndToken, tokens.FlowMappingEndToken)
+    depth = 0
+    try:
+        for token in yaml12.scan(text):
+            if isinstance(token, opening):
+                depth += 1
+                if depth > bounds.MAX_YAML_DEPTH:
+                    return (f"line {token.start_mark.line + 1}: nested more than {bounds.MAX_YAML_DEPTH} levels deep "
+                            f"(the bound for a scene file)")
+            elif isinstance(token, closing):
+                depth -= 1
+    except yaml12.YAMLError:
+        return None  # a syntax error: the parser reports it with its line
+    return None
+
+
+def yaml_nodes_problem(node: Any) -> str | None:
+    """A message if a composed YAML node graph holds more than MAX_YAML_NODES values once aliases are expanded."""
+    sizes: dict[int, int] = {}
+
+    def size(n) -> int:  # memoised: an alias shares its anchor's node, counted once per use
+        if id(n) not in sizes:
+            if isinstance(n, yaml12.MappingNode):
+                children = [c for pair in n.value for c in pair]
+            elif isinstance(n, yaml12.SequenceNode):
+                children = n.value
+            else:
+                children = []
+            sizes[id(n)] = 1 + sum(size(c) for c in children)
+        return sizes[id(n)]
+
+    total = size(node) if node is not None else 0
+    if total > bounds.MAX_YAML_NODES:
+        return (f"{total} values once aliases (*name) are expanded, more than the bound of {bounds.MAX_YAML_NODES} "
+                f"for a scene file")
+    return None
+
+
 Locate = Callable[[tuple], "int | None"]  # field path (keys, list indices) -> its 1-based line in the file
 
 
 def read_yaml(text: str, source: str = "<scene>") -> tuple[Any, Locate]:
     """Parse YAML text as a scene file is read: (data, locate), locate(loc) the line of a field. Raises UserError."""
-    problem = validate.yaml_text_problem(text)  # size and depth, before a parser that recurses per level
+    problem = yaml_text_problem(text)  # size and depth, before a parser that recurses per level
     if problem:
         raise UserError(f"{source}: {problem}")
     try:
-        node = yamlio.compose(text)
-        problem = validate.yaml_nodes_problem(node)  # before anything expands the aliases
+        node = yaml12.compose(text)
+        problem = yaml_nodes_problem(node)  # before anything expands the aliases
         if problem:
             raise UserError(f"{source}: {problem}")
-        twice = yamlio.duplicate_key(node)  # YAML forbids it; a plain loader would keep the last silently
+        twice = yaml12.duplicate_key(node)  # YAML forbids it; a plain loader would keep the last silently
         if twice:
             key, first, again = twice
             raise UserError(f"{source}:{again}: field '{key}' is given twice (first on line {first})")
-        data = yamlio.load(text)
-    except yamlio.YAMLError as exc:
+        data = yaml12.load(text)
+    except yaml12.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f":{mark.line + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
@@ -116,7 +166,7 @@ def validate_scene(data: Any, source: str, locate: Locate, base_dir: Path | None
 
 def yaml_value(text: str) -> Any:
     """One YAML value as a scene file would read it (for KEY=VALUE overrides on a command line)."""
-    return yamlio.load(text)
+    return yaml12.load(text)
 
 
 def _set_path(data: dict, dotted: str, value: Any, source: str, locate: Locate) -> None:
@@ -151,7 +201,7 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
         full = p if p.is_absolute() else (base / p)
         line = locate(loc)
         where = f"{source}{f':{line}' if line else ''}: field '{'.'.join(map(str, loc))}'"
-        kind = validate.file_kind_problem(full)
+        kind = bounds.file_kind_problem(full)
         if kind:
             raise UserError(f"{where}: " + (f"file not found: {full}" if kind == "no such file" else
                                           f"{full} {kind}, not a regular file"))
@@ -177,13 +227,13 @@ def _check_assets(cfg: SceneConfig, source: str, base: Path, locate: Locate) -> 
 
 def _read_image(path: Path) -> None:
     """Decode an image texture once (OpenCV; OpenEXR for .exr); UserError if it holds no pixels or more than
-    validate.MAX_TEXTURE_PIXELS (checked from its header, before decoding)."""
+    bounds.MAX_TEXTURE_PIXELS (checked from its header, before decoding)."""
     from dvsot.events.frame_sources import image_size
 
     size = image_size(path)
-    if size is not None and size[0] * size[1] > validate.MAX_TEXTURE_PIXELS:
+    if size is not None and size[0] * size[1] > bounds.MAX_TEXTURE_PIXELS:
         raise UserError(f"{path}: image of {size[0]}x{size[1]} pixels, more than the bound of "
-                        f"{validate.MAX_TEXTURE_PIXELS} (8192x8192) for a texture")
+                        f"{bounds.MAX_TEXTURE_PIXELS} (8192x8192) for a texture")
     if path.suffix.lower() == ".exr":
         import OpenEXR
 
@@ -203,13 +253,13 @@ def _read_image(path: Path) -> None:
 def read_scene_text(path: str | Path, what: str = "scene") -> str:
     """The text of a scene (or template) file: a regular file of at most MAX_SCENE_BYTES; UserError otherwise."""
     p = Path(path)
-    kind = validate.file_kind_problem(p)  # checked first: reading a FIFO would wait forever
+    kind = bounds.file_kind_problem(p)  # checked first: reading a FIFO would wait forever
     if kind:
         raise UserError(f"{p}: " + (f"no such {what} file" if kind == "no such file" else f"{kind}, not a {what} file"))
     try:
         size = p.stat().st_size
-        if size > validate.MAX_SCENE_BYTES:
-            raise UserError(f"{p}: {size} bytes, more than the bound of {validate.MAX_SCENE_BYTES} bytes (1 MB) "
+        if size > bounds.MAX_SCENE_BYTES:
+            raise UserError(f"{p}: {size} bytes, more than the bound of {bounds.MAX_SCENE_BYTES} bytes (1 MB) "
                             f"for a {what} file")
         return p.read_text()
     except FileNotFoundError:

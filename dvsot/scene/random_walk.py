@@ -16,8 +16,8 @@ import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from dvsot.scene import Vec3
-from dvsot.errors import UserError
-from dvsot.strict import Float, Strict
+from dvsot.core.errors import UserError
+from dvsot.core.strict import Float, Strict
 
 _PLANES = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}
 MAX_STEPS = 100_000

@@ -14,9 +14,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from dvsot.defaults import SEGMENT_US
+from dvsot.core.defaults import SEGMENT_US
 from dvsot.events import EventParams
-from dvsot.strict import Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
+from dvsot.core.strict import Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
 
 # Sane ranges (dvsot.scene.checks has the checks that need the whole scene): coordinates within 1000 km
 # (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
@@ -282,7 +282,7 @@ class SceneConfig(Strict):
     seed: Int = Field(0, ge=0, le=2**63 - 1, description="master seed: every other seed derives from it")
     duration_s: Float = Field(ge=0.001, le=600, description="seconds; at least 1 ms")
     segment_ms: Float = Field(SEGMENT_US / 1000, ge=1, le=60_000,
-                              description="milliseconds, at least 1 (dvsot.limits)")
+                              description="milliseconds, at least 1 (dvsot.core.bounds)")
     sensor: Sensor = Sensor()
     camera: Trajectory
     target: SceneObject

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line
 
 Mesh = tuple[np.ndarray, list[list[int]]]
 

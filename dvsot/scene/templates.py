@@ -23,7 +23,7 @@ from pydantic import ValidationError
 
 from dvsot.scene import Locate, SceneConfig, read_scene_text, read_yaml, validate_scene
 from dvsot.scene.distributions import CENTRE, DrawContext, distributions, dotted, is_plain, kind_of, resolve
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events import EventParams
 from dvsot.scene.random_walk import expand_walks
 from dvsot.scene.yaml_write import to_yaml

@@ -12,9 +12,9 @@ import numpy as np
 import torch
 from pydantic import BaseModel, Field, ValidationError
 
-from dvsot.errors import RunError
-from dvsot.strict import Strict
-from dvsot.limits import MAX_LEARNING_RATE
+from dvsot.core.errors import RunError
+from dvsot.core.strict import Strict
+from dvsot.core.bounds import MAX_LEARNING_RATE
 
 HELD_OUT_EVERY = 10  # every 10th usable segment of each file is a validation segment, never a training one
 

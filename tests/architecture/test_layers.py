@@ -1,8 +1,8 @@
 """The layers of docs/ARCHITECTURE.md, read from the code: dvsot's stages <- sctn <- benchmarks <- dvsot/cli.
 
 Within dvsot the stage packages come in one order, each importing only from itself and the stages before it:
-the basics (dvsot's top-level modules), runtime, events, scene, render, dataset, interop, pipeline; the
-modules that only re-export an old import path come after them. Every import under dvsot/, sctn/ and
+the basics (dvsot.core), runtime, events, scene, render, dataset, interop, pipeline; the deprecated
+modules at old import paths come after them. Every import under dvsot/, sctn/ and
 benchmarks/ counts: top-level, inside functions, relative, and `importlib.import_module("...")` with a
 literal name. Only dvsot/render/blender/ may import bpy (or Blender's mathutils / bmesh).
 """
@@ -18,8 +18,8 @@ STAGES = ("base", "runtime", "events", "scene", "render", "dataset", "interop", 
 RANK = {**{stage: i for i, stage in enumerate(STAGES)}, "sctn": 10, "benchmarks": 11, "commands": 12}
 BLENDER_MODULES = {"bpy", "mathutils", "bmesh"}
 BLENDER_PACKAGE = "dvsot.render.blender"
-# dvsot's top-level modules that every stage may use
-BASE = {"errors", "defaults", "strict", "limits", "yaml12", "lazy", "__version__"}
+# the parts of dvsot that every stage may use: the package dvsot.core, and the version
+BASE = {"core", "__version__"}
 
 # (importing module, imported module) edges against the order that are a known design need, each with why.
 # Empty: every edge the first run of this test found was fixed instead.
@@ -131,11 +131,13 @@ def test_the_checker_finds_each_kind_of_bad_edge(tmp_path):
 def test_the_checker_finds_a_stage_importing_a_later_stage(tmp_path):
     for pkg in ("dvsot", "dvsot/events", "dvsot/pipeline", "dvsot/dataset"):
         _write(tmp_path, f"{pkg}/__init__.py", "")
-    _write(tmp_path, "dvsot/errors.py", "")
-    _write(tmp_path, "dvsot/pipeline/generate.py", "from dvsot.events import EventSimulator\nfrom dvsot import errors\n")
+    _write(tmp_path, "dvsot/core/__init__.py", "")
+    _write(tmp_path, "dvsot/core/errors.py", "")
+    _write(tmp_path, "dvsot/pipeline/generate.py",
+           "from dvsot.events import EventSimulator\nfrom dvsot.core import errors\n")
     _write(tmp_path, "dvsot/events/simulator.py", "def f():\n    from dvsot.dataset import writer\n")
-    _write(tmp_path, "dvsot/dataset/writer.py", "from dvsot.generate import generate\n")  # an old, re-exported path
-    _write(tmp_path, "dvsot/limits.py", "from dvsot.events import EventBatch\n")
+    _write(tmp_path, "dvsot/dataset/writer.py", "from dvsot.config import load_scene\n")  # a deprecated path
+    _write(tmp_path, "dvsot/core/bounds.py", "from dvsot.events import EventBatch\n")
     found = [line.split(": ")[1].split(" (")[0] for line in violations(tmp_path)]
-    assert found == ["dvsot.dataset.writer imports dvsot.generate", "dvsot.events.simulator imports dvsot.dataset",
-                     "dvsot.limits imports dvsot.events"]
+    assert found == ["dvsot.core.bounds imports dvsot.events", "dvsot.dataset.writer imports dvsot.config",
+                     "dvsot.events.simulator imports dvsot.dataset"]

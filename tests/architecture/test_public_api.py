@@ -42,16 +42,52 @@ def test_every_public_name_resolves(package):
         getattr(mod, "no_such_name")
 
 
-def test_names_shared_with_submodules_are_the_callable_modules():
+def test_generate_is_the_function_of_its_module():
+    import types
+
     import dvsot
-    import dvsot.generate
+    from dvsot.pipeline import generate as module
+
+    assert isinstance(dvsot.generate, types.FunctionType) and dvsot.generate is module.generate
+    assert not _has_module("dvsot.generate")  # the old callable module is gone
+
+
+@pytest.mark.parametrize("old, new, name", [("dvsot.config", "dvsot.scene", "load_scene"),
+                                            ("dvsot.torchdata", "dvsot.dataset.torchdata", "SegmentDataset"),
+                                            ("dvsot.errors", "dvsot.core.errors", "UserError")])
+def test_old_public_paths_warn_and_still_import(old, new, name, monkeypatch):
+    import importlib
+
+    monkeypatch.delitem(sys.modules, old, raising=False)
+    with pytest.warns(DeprecationWarning, match=f"{old} is deprecated: import {new}"):
+        mod = importlib.import_module(old)
+    assert getattr(mod, name) is getattr(importlib.import_module(new), name)
+
+
+@pytest.mark.parametrize("old", ["dvsot.exchange", "dvsot.recordings", "dvsot.textevents", "dvsot.preview",
+                                 "dvsot.sampling", "dvsot.templates", "dvsot.limits", "dvsot.yaml12",
+                                 "dvsot.strict", "dvsot.defaults", "dvsot.lazy", "dvsot.dataset.safe_names",
+                                 "benchmarks.ablation", "benchmarks.regression"])
+def test_paths_only_the_project_used_are_gone(old):
+    assert not _has_module(old)
+
+
+def _has_module(dotted: str) -> bool:
+    """Whether the package above `dotted` holds a module or package of its last name (a file, not an import:
+    an editable install may find the name in another checkout)."""
+    import importlib
+    import pkgutil
+
+    parent, _, name = dotted.rpartition(".")
+    return any(m.name == name for m in pkgutil.iter_modules(importlib.import_module(parent).__path__))
+
+
+def test_names_shared_with_submodules_are_the_callable_modules():
     import sctn
     import sctn.train
-    from dvsot.generate import generate
 
-    assert dvsot.generate is sys.modules["dvsot.generate"] and callable(dvsot.generate)
     assert sctn.train is sys.modules["sctn.train"] and callable(sctn.train)
-    assert dvsot.generate.generate is generate and sctn.train.TrainConfig is sctn.TrainConfig
+    assert sctn.train.TrainConfig is sctn.TrainConfig
 
 
 def test_a_call_through_the_module_meets_a_patch(monkeypatch):

@@ -10,7 +10,7 @@ import pytest
 from dvsot.cli import main
 from dvsot.dataset import DatasetWriter
 from dvsot.events import EventBatch
-DIGEST_ATTR = "attrs_sha256"  # the root attribute the writer adds (dvsot.limits)
+DIGEST_ATTR = "attrs_sha256"  # the root attribute the writer adds (dvsot.dataset.digest)
 
 W, H = 64, 48
 

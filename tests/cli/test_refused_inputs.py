@@ -78,7 +78,7 @@ def _small_file(path, t_offset_us: int = 0, t=None, **attrs):
 def test_a_flipped_bit_in_t_offset_is_refused_and_files_before_its_check_still_load(tmp_path, capsys):
     import h5py
 
-    from dvsot import limits as validate
+    from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
     from dvsot.dataset.format import decode_attr
 
     path = _small_file(tmp_path / "rec.h5", t_offset_us=1_650_000_000_000_000)
@@ -92,12 +92,12 @@ def test_a_flipped_bit_in_t_offset_is_refused_and_files_before_its_check_still_l
     # the attribute that guards it is itself covered by the digest
     with h5py.File(path, "r+") as f:
         f.attrs["t_offset_us"] = np.int64(1_650_000_000_000_000 ^ (1 << 40))
-    assert main(["info", str(path)]) == 2 and validate.DIGEST_ATTR in capsys.readouterr().err
+    assert main(["info", str(path)]) == 2 and DIGEST_ATTR in capsys.readouterr().err
     # a file written before the attribute (its digest over the others) still loads, offset as stored
     old = _small_file(tmp_path / "old.h5", t_offset_us=5_000)
     with h5py.File(old, "r+") as f:
         del f.attrs["t_offset_us"]
-        f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+        f.attrs[DIGEST_ATTR] = attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
     assert main(["info", str(old)]) == 0
     with Dataset(old) as ds:
         assert ds.t_offset_us == 5_000
@@ -106,14 +106,16 @@ def test_a_flipped_bit_in_t_offset_is_refused_and_files_before_its_check_still_l
 def test_a_scene_file_at_the_1_mb_limit_is_stored_and_read_back(tmp_path, capsys):
     import h5py
 
-    from dvsot import limits as validate
+    from dvsot.core import bounds
+    from dvsot.dataset.digest import DIGEST_ATTR
+    from dvsot.scene.loader import yaml_text_problem
 
     # a scene file of exactly the bound (comment lines, some of them not ASCII), as generate stores it
     line = "# padding: ščena ünd ßzene\n"
-    text = "name: big\n" + line * ((validate.MAX_SCENE_BYTES - 100) // len(line.encode()))
-    text += "#" * (validate.MAX_SCENE_BYTES - len(text.encode()) - 1) + "\n"
-    assert len(text.encode()) == validate.MAX_SCENE_BYTES
-    assert validate.yaml_text_problem(text) is None  # a scene file generate accepts
+    text = "name: big\n" + line * ((bounds.MAX_SCENE_BYTES - 100) // len(line.encode()))
+    text += "#" * (bounds.MAX_SCENE_BYTES - len(text.encode()) - 1) + "\n"
+    assert len(text.encode()) == bounds.MAX_SCENE_BYTES
+    assert yaml_text_problem(text) is None  # a scene file generate accepts
     path = _small_file(tmp_path / "big.h5", scene_yaml=text, config={"notes": [text[:70_000]]})
     assert main(["info", str(path)]) == 0
     with Dataset(path) as ds:
@@ -127,7 +129,7 @@ def test_a_scene_file_at_the_1_mb_limit_is_stored_and_read_back(tmp_path, capsys
     capsys.readouterr()
     assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
-    assert validate.DIGEST_ATTR in err and len(err.strip().splitlines()) == 1, err
+    assert DIGEST_ATTR in err and len(err.strip().splitlines()) == 1, err
 
 
 def _refused(argv: list[str], capsys, *words: str) -> str:
@@ -145,7 +147,8 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
 
     import h5py
 
-    from dvsot import limits as validate
+    from dvsot.core import bounds
+    from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
     from dvsot.dataset.format import decode_attr
     from synthetic import MINIMAL_SCENE
 
@@ -157,7 +160,7 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
             f[f"events/{name}"].resize((n,))
         f["events/ms_to_idx"][1:] = n
         f.attrs["num_events"] = n
-        f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+        f.attrs[DIGEST_ATTR] = attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
     assert path.stat().st_size < 100_000
     for argv in (["info", str(path)], ["export", str(path), "-o", str(tmp_path / "big.csv")],
                  ["bench", "--tracker", "kcf", "--data", str(path), "--split", "any", "--out", str(tmp_path / "b")]):
@@ -170,28 +173,29 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
     csv = tmp_path / "e.csv"
     csv.write_text("1000,1,2,1\n2000,3,4,0\n")
     for argv, words in (
-            (["generate", template, "--variants", "3000000", "--dry-run"], ("--variants", str(validate.MAX_VARIANTS))),
-            (["generate", str(scene), "--jobs", "1000000"], ("--jobs", str(validate.MAX_WORKERS))),
+            (["generate", template, "--variants", "3000000", "--dry-run"], ("--variants", str(bounds.MAX_VARIANTS))),
+            (["generate", str(scene), "--jobs", "1000000"], ("--jobs", str(bounds.MAX_WORKERS))),
             (["generate", template, "--variants", "2", "--scheduler", "local:100000", "--out-dir", str(tmp_path / "o")],
-             ("local:N", str(validate.MAX_WORKERS))),
+             ("local:N", str(bounds.MAX_WORKERS))),
             (["bench", "--tracker", "kcf", "--jobs", "1000000", "--data", str(_small_file(tmp_path / "ok.h5"))],
-             ("--jobs", str(validate.MAX_WORKERS))),
+             ("--jobs", str(bounds.MAX_WORKERS))),
             (["import", str(csv), "--size", "32x32", "--segment-us", str(10**15), "-o", str(tmp_path / "i.h5")],
-             ("--segment-us", str(validate.MAX_SEGMENT_US))),
+             ("--segment-us", str(bounds.MAX_SEGMENT_US))),
             (["simulate", str(tmp_path / "frames"), "--fps", "1000", "--segment-us", str(10**15),
-              "-o", str(tmp_path / "s.h5")], ("--segment-us", str(validate.MAX_SEGMENT_US))),
-            (["train", "--data", str(tmp_path / "ok.h5"), "--threads", "100000"], ("--threads", str(validate.MAX_THREADS))),
+              "-o", str(tmp_path / "s.h5")], ("--segment-us", str(bounds.MAX_SEGMENT_US))),
+            (["train", "--data", str(tmp_path / "ok.h5"), "--threads", "100000"],
+             ("--threads", str(bounds.MAX_THREADS))),
             (["train", "--data", str(tmp_path / "ok.h5"), "--tail-steps", "1000000000"],
-             ("--tail-steps", str(validate.MAX_TAIL_STEPS))),
+             ("--tail-steps", str(bounds.MAX_TAIL_STEPS))),
             (["train", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
             (["train", "--model", "siamfc", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
             (["import", str(csv), "--size", "65536x65536", "-o", str(tmp_path / "i.h5")],
-             ("--size", str(validate.MAX_SENSOR_PIXELS)))):
+             ("--size", str(bounds.MAX_SENSOR_PIXELS)))):
         _refused(argv, capsys, *words)
     # a TXT header of 65536x65536: refused on its line before its events are read
     txt = tmp_path / "e.txt"
     txt.write_text("65536 65536\n0.001 1 2 1\n")
-    _refused(["import", str(txt), "-o", str(tmp_path / "i.h5")], capsys, f"{txt}:1", str(validate.MAX_SENSOR_PIXELS))
+    _refused(["import", str(txt), "-o", str(tmp_path / "i.h5")], capsys, f"{txt}:1", str(bounds.MAX_SENSOR_PIXELS))
 
     # a 60000x60000 PNG texture (a header and a token of data): refused from its header, before decoding
     def chunk(kind: bytes, data: bytes) -> bytes:
@@ -202,12 +206,12 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
                     + chunk(b"IDAT", zlib.compress(b"\0" * 60001)) + chunk(b"IEND", b""))
     scene.write_text(MINIMAL_SCENE + f"background:\n  material: {{texture: {{type: image, path: {png}}}}}\n")
     _refused(["generate", str(scene), "-o", str(tmp_path / "t.h5")], capsys, str(png), "60000x60000",
-             str(validate.MAX_TEXTURE_PIXELS))
+             str(bounds.MAX_TEXTURE_PIXELS))
     # and as a frame of `dvsot simulate`
     (tmp_path / "frames").mkdir()
     png.rename(tmp_path / "frames" / "f0.png")
     _refused(["simulate", str(tmp_path / "frames"), "--fps", "100", "-o", str(tmp_path / "t.h5")], capsys,
-             "f0.png", "60000x60000", str(validate.MAX_SENSOR_PIXELS))
+             "f0.png", "60000x60000", str(bounds.MAX_SENSOR_PIXELS))
     assert not list(tmp_path.glob("*.h5.*")) and not (tmp_path / "i.h5").exists() and not (tmp_path / "t.h5").exists()
 
 
@@ -216,7 +220,8 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
 
     import h5py
 
-    from dvsot import limits as validate
+    from dvsot.core import bounds
+    from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
     from dvsot.dataset.format import decode_attr
     from synthetic import MINIMAL_SCENE
 
@@ -225,7 +230,7 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
         with h5py.File(path, "r+") as f:
             for name, values in datasets.items():
                 f[name.replace("__", "/")][...] = values
-            f.attrs[validate.DIGEST_ATTR] = validate.attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
+            f.attrs[DIGEST_ATTR] = attrs_digest({k: decode_attr(v) for k, v in f.attrs.items()})
 
     # boxes 1e-30 px wide (bench made an empty table of them at exit 0)
     thin = _small_file(tmp_path / "thin.h5")
@@ -270,5 +275,5 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     # a contrast threshold that overflows (it printed an overflow note and went on)
     np.save(tmp_path / "f.npy", np.linspace(0.1, 0.9, 20 * 8 * 8, dtype=np.float32).reshape(20, 8, 8))
     _refused(["simulate", str(tmp_path / "f.npy"), "--fps", "1000", "--cp", "1e308", "-o", str(tmp_path / "f.h5")],
-             capsys, "--cp", str(validate.MAX_CONTRAST)[:3])
+             capsys, "--cp", str(bounds.MAX_CONTRAST)[:3])
     assert not any(p.suffix == ".h5" and p.name not in ("thin.h5", "late.h5", "ok.h5", "loop.h5") for p in tmp_path.iterdir())

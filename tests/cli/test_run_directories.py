@@ -48,7 +48,7 @@ def bench(data: Path, out: Path, *more) -> subprocess.CompletedProcess:
 def test_sequences_whose_safe_names_collide_are_refused_before_work(tmp_path, monkeypatch):
     import synthetic
 
-    from dvsot.dataset.safe_names import file_stem
+    from benchmarks.evaluation.safe_names import file_stem
 
     twin = file_stem("a/b")  # "a_b-<hash>": a plain name that the safe name of "a/b" equals
     d = tmp_path / "data"

@@ -12,7 +12,7 @@ from torch.nn import functional as F
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import SiamFC, SiamFCConfig
 from benchmarks.trackers.siamfc.train import logistic_loss
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from sctn.ann import SCTNTwin, TwinConfig, count_macs, load_twin, train_twin, twin_macs
 from sctn.checkpoint import load_checkpoint, save_checkpoint
 from sctn.network import SCTN, NetworkConfig

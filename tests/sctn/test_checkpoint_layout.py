@@ -49,7 +49,7 @@ def test_shipped_checkpoint_is_the_paper_preset_and_silent_on_an_empty_input(nam
 
 
 def test_an_unknown_shipped_name_is_refused_naming_the_choices():
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from sctn.checkpoint import SHIPPED, shipped_checkpoint_path
 
     assert all(shipped_checkpoint_path(name).is_file() for name in SHIPPED)

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from dvsot.cli import main
-from dvsot.errors import RunError, UserError
+from dvsot.core.errors import RunError, UserError
 from sctn.checkpoint import (DIGEST_KEY, UndigestedCheckpointWarning, default_checkpoint_path, load_checkpoint,
                              metadata_path, save_checkpoint, shipped_checkpoint_path, weights_digest)
 from sctn.network import SCTN, NetworkConfig

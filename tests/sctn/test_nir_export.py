@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from dvsot.cli import main
-from dvsot.errors import RunError
+from dvsot.core.errors import RunError
 from sctn.checkpoint import default_checkpoint_path, load_checkpoint
 from sctn.encoding import encode_boxes
 from sctn.neurons import psp_kernel

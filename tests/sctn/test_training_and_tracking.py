@@ -12,7 +12,7 @@ import torch
 from dvsot.dataset.boxes import iou_xywh
 from dvsot.cli import main
 from dvsot.dataset import Dataset
-from dvsot.errors import RunError
+from dvsot.core.errors import RunError
 from sctn.checkpoint import load_checkpoint, save_checkpoint
 from sctn.samples import FINETUNE, TRACK, TRAIN, SampleSpec, draw_samples, labelled_samples
 from sctn.tracker import SCTNTracker
@@ -141,7 +141,7 @@ def test_checkpoint_round_trip_and_train_cli_errors(trained, tmp_path, capsys):
     x = (torch.rand(2, 10, 2, 107, 107) < 0.02).float()
     assert torch.equal(loaded(x), model(x))
     (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     with pytest.raises(UserError, match="junk.pt"):
         load_checkpoint(tmp_path / "junk.pt")
@@ -219,7 +219,7 @@ def test_failed_torch_save_leaves_no_temp_file(tmp_path, monkeypatch):
 
 
 def test_save_checkpoint_refuses_a_directory_or_a_json_name(tmp_path):
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     (tmp_path / "adir").mkdir()
     with pytest.raises(UserError, match="directory"):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from dvsot.errors import exception_line
+from dvsot.core.errors import exception_line
 from sctn.params import SCTNParams, SearchParams
 
 

@@ -22,7 +22,7 @@ from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
-from dvsot.strict import Float, Int, Strict
+from dvsot.core.strict import Float, Int, Strict
 
 MIN_SIZE_PX = 4.0
 

@@ -27,7 +27,7 @@ from torch.nn import functional as F
 from benchmarks.evaluation.atsltd import atsltd_frame
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
-from dvsot.limits import MAX_LEARNING_RATE
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
 
 

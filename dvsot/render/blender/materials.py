@@ -8,7 +8,7 @@ import warnings
 import bpy
 
 from dvsot.scene import Material, Texture
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 # Presets of look-alike backgrounds: (base texture, node settings, output, default colour ramp).
 PRESETS: dict[str, tuple[str, dict, str, list]] = {

@@ -36,7 +36,7 @@ from dvsot.render.blender.bake import bake_background, should_bake
 from dvsot.render.blender.materials import direct_lighting, material, texture_colour
 from dvsot.render.blender.quiet import captured_output, quiet_stdout
 from dvsot.scene import Background, SceneConfig, SceneObject, Texture
-from dvsot.errors import RunError, exception_line
+from dvsot.core.errors import RunError, exception_line
 from dvsot.events.labels import TARGET_ID
 from dvsot.render.plane_view import seen_part
 from dvsot.render.raster import silhouette_mask, triangulate

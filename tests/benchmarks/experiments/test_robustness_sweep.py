@@ -36,7 +36,7 @@ def test_sweep_tables_arscore_per_tracker_against_the_noise_rate(tmp_path):
 
 def test_frames_that_do_not_match_the_sequence_are_refused(tmp_path):
     from benchmarks.experiments.robustness import resimulate
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     seq, frames = kept_sequence(tmp_path, n=12)
     (frames / "000011.npy").unlink()

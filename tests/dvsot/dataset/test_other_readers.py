@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dvsot.dataset import Dataset, DatasetWriter
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events import EventBatch
 from tests.dvsot.dataset.test_round_trip import random_events
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dvsot.dataset import FORMAT_VERSION, Dataset, DatasetWriter, find_datasets
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events import EventBatch
 
 
@@ -152,7 +152,7 @@ def test_foreign_truncated_and_damaged_files_give_one_line_errors(tmp_path, samp
 
 def test_the_read_back_compares_every_stored_chunk_with_the_one_written(tmp_path, monkeypatch):
     from dvsot.dataset import writer as writer_module
-    from dvsot.errors import RunError
+    from dvsot.core.errors import RunError
 
     rng = np.random.default_rng(2)
     path = tmp_path / "seq.h5"
@@ -209,7 +209,7 @@ def test_find_datasets_by_directory_glob_list_and_split(tmp_path):
 
 
 def test_a_file_that_fails_its_read_back_never_replaces_the_old_one(tmp_path, monkeypatch):
-    from dvsot.errors import RunError
+    from dvsot.core.errors import RunError
 
     rng = np.random.default_rng(1)
     path = tmp_path / "seq.h5"

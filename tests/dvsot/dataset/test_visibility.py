@@ -7,7 +7,7 @@ import pytest
 
 from dvsot.dataset.boxes import mask_visibility
 from dvsot.dataset import Dataset, DatasetWriter
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 
 NAN4 = [np.nan] * 4
 

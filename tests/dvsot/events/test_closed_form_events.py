@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events import EventBatch, EventParams, EventSimulator
 
 

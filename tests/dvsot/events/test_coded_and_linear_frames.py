@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events import CodedFrame, EventParams, EventSimulator
 from dvsot.events.frame_sources import _log_table
 

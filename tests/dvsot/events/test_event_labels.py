@@ -131,7 +131,7 @@ def test_labelled_file_round_trip(tmp_path):
 
 
 def test_frames_labelled_all_or_none(tmp_path):
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.pipeline.sequence import write_sequence
 
     frames = [LabelledFrame(*scene(0, False)), scene(1, False)[0]]
@@ -159,7 +159,7 @@ def test_label_column_disagreeing_with_its_table_is_refused_on_open(tmp_path, ch
     import h5py
 
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     path = _labelled_file(tmp_path)
     with h5py.File(path, "r+") as f:
@@ -217,7 +217,7 @@ def test_label_column_without_its_table_is_refused(tmp_path):
     import h5py
 
     from dvsot.dataset import Dataset
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     path = _labelled_file(tmp_path)
     with h5py.File(path, "r+") as f:

@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.events.batch import NOISE_KINDS, EventBatch
 from dvsot.events import EventParams, EventSimulator
 from dvsot.events.presets import PRESETS, sensor_on

@@ -79,7 +79,7 @@ def test_torch_dataset_gives_labels_and_target_mask(tmp_path):
 
 
 def test_torch_labels_need_a_labelled_file(tmp_path):
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
     from dvsot.dataset.torchdata import SegmentDataset
 
     src = _labelled(tmp_path / "u.h5", labels=False)

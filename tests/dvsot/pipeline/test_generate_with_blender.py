@@ -110,7 +110,7 @@ def test_direct_shading_gives_the_closed_form_lambert_radiance(tmp_path):
 
 
 def test_direct_shading_refuses_point_and_area_lights():
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     text = SCENE.format(duration=0.02, x0=0.0, x1=0.0, shake=0.0, texture="null")
     text = text.replace("lights: []", "lights: [{type: point, strength: 100}]")

@@ -54,12 +54,12 @@ def test_each_worker_on_a_machine_gets_its_own_share_of_the_cpus():
 
 
 def test_a_bound_worker_renders_with_its_bound_cpus(monkeypatch):
-    from dvsot.pipeline import scene_runner as scale
+    from dvsot.pipeline import scene_runner
 
-    monkeypatch.setattr(scale, "_BOUND", [4, 5])  # as warm_up leaves a worker bound to two CPUs of four
-    assert scale._threads_for_this_worker({"tcp://127.0.0.1": 2}) == 2
-    monkeypatch.setattr(scale, "_BOUND", [])
-    assert scale._threads_for_this_worker({}) == cores()  # outside a worker: every CPU
+    monkeypatch.setattr(scene_runner, "_BOUND", [4, 5])  # as warm_up leaves a worker bound to two CPUs of four
+    assert scene_runner._threads_for_this_worker({"tcp://127.0.0.1": 2}) == 2
+    monkeypatch.setattr(scene_runner, "_BOUND", [])
+    assert scene_runner._threads_for_this_worker({}) == cores()  # outside a worker: every CPU
 
 
 def test_local_cluster_records_a_failure_retried_elsewhere_and_resume_renders_only_what_is_missing(tmp_path, capsys):

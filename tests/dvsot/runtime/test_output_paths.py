@@ -2,7 +2,7 @@
 
 import pytest
 
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from dvsot.runtime.outputs import output_dir, output_file
 
 
@@ -45,7 +45,7 @@ import os
 import socket
 
 from dvsot.runtime import staging
-from dvsot.errors import RunError
+from dvsot.core.errors import RunError
 from dvsot.runtime.outputs import replacing, run_outputs
 
 

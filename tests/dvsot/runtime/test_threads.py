@@ -12,7 +12,7 @@ import pytest
 import dvsot
 from dvsot.runtime.threads import OrderedWorker, read_ahead
 from dvsot.dataset import DatasetWriter, open_dataset
-from dvsot.errors import RunError, UserError
+from dvsot.core.errors import RunError, UserError
 from dvsot.events import EventParams, EventSimulator, log_intensity
 from dvsot.events.frame_sources import open_frames
 

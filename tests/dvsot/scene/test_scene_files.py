@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from dvsot.scene import load_scene
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from synthetic import MINIMAL_SCENE
 
 SCENES = sorted(Path(__file__).resolve().parents[3].joinpath("blender_scenes").glob("*.yaml"))

@@ -3,7 +3,7 @@
 import pytest
 
 from dvsot.scene import load_scene, yaml_value
-from dvsot.errors import UserError
+from dvsot.core.errors import UserError
 from synthetic import MINIMAL_SCENE
 
 

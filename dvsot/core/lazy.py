@@ -19,7 +19,7 @@ def lazy_attributes(package: str, table: dict[str, str]) -> tuple[Callable[[str]
         if name not in table:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         module = importlib.import_module(table[name])
-        # a name shared with its own submodule (dvsot.pipeline.generate) is the submodule, made callable below
+        # a name shared with its own submodule (sctn.train) is the submodule, made callable below
         return module if module.__name__ == f"{package}.{name}" else getattr(module, name)
 
     def __dir__() -> list[str]:
@@ -32,7 +32,7 @@ def callable_module(module_name: str, function: str) -> None:
     """Let the module be called as its function `function` (looked up at each call, so a patch applies).
 
     Why: a package attribute named like one of its submodules is replaced by the submodule whenever that
-    is first imported, so `dvsot.pipeline.generate` cannot reliably be the function; it is the module, callable.
+    is first imported, so `sctn.train` cannot reliably be the function; it is the module, callable.
     """
     module = sys.modules[module_name]
 
