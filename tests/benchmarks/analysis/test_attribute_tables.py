@@ -23,9 +23,11 @@ def _result(tracker, seq, iou, tags, centre=None):
 def test_the_table_counts_each_attributes_segments():
     a = _result("t", "a", [np.nan, 0.8, 0.2, 0.6], {"occlusion": [0, 0, 1, 1], "small_target": [1, 1, 1, 1]})
     b = _result("t", "b", [np.nan, 0.4, 1.0], {"small_target": [0, 0, 1]})  # no visibility: no occlusion tag
-    table = format_attributes(attribute_scores([a, b]))
+    scores = attribute_scores([a, b])
+    table = format_attributes(scores)
     assert "| t |" in table and "occlusion (2 seg)" in table and "small_target (4 seg)" in table
-    assert "**0.500** (0.400 / 0.500)" in table  # occlusion: ARscore (A / R)
+    s = scores["t"]["occlusion"]  # A 0.4, R 0.5 (tests/benchmarks/evaluation/test_segment_attributes.py)
+    assert f"| **{s.arscore:.3f}** (0.400 / 0.500) |" in table
 
 
 def test_one_pass_attribute_files(tmp_path):
