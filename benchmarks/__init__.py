@@ -12,8 +12,8 @@ per-sequence files, pictures and manifest, written together), `energy_table` (th
 from dvsot.core.lazy import lazy_attributes
 
 _API = {
-    "run_benchmark": "benchmarks.evaluation.plan",
-    "plan_benchmark": "benchmarks.evaluation.plan",
+    "run_benchmark": "benchmarks.bench.plan",
+    "plan_benchmark": "benchmarks.bench.plan",
     "benchmark": "benchmarks.evaluation.runner",
     "run_one": "benchmarks.evaluation.runner",
     "SequenceResult": "benchmarks.evaluation.protocol",

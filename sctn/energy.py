@@ -71,22 +71,6 @@ def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
             "energy_pj_per_sample": total * E_AC_PJ}
 
 
-def candidate_ops(model: SCTN, events, t0_us: int, boxes_xywh, batch: int = 64) -> float:
-    """AC operations of evaluating each candidate box on its own masked input (the paper's tracking), summed over the
-    boxes: event-driven (sctn.sparse.evaluate) where that is exact, else densely from forward_record."""
-    from sctn.encoding import encode_boxes
-    from sctn.sparse.evaluate import candidate_record, exact_blocker
-
-    if exact_blocker(model) is None:
-        _, rec = candidate_record(model, events, t0_us, boxes_xywh)
-        return float(sum(float(v.sum()) for v in rec["ac_ops"].values()))
-    cfg, total = model.cfg, 0.0
-    for i in range(0, len(boxes_xywh), batch):
-        x = encode_boxes(events, t0_us, boxes_xywh[i:i + batch], cfg)
-        total += count_synaptic_ops(model, x)["ac_ops_per_sample"] * len(x)
-    return total
-
-
 def bias_additions(model: SCTN) -> float:
     """Bias additions per evaluated sample: one per neuron with a bias per time step (0 without biases)."""
     steps = model.cfg.steps + model.cfg.tail_steps

@@ -34,7 +34,7 @@ from torch.nn import functional as F
 
 from sctn.neurons import ALPHA_M, ALPHA_S, CLIF
 from sctn.params import CROPS
-from sctn.sparse.spike_sums import mix_corners, window_sums
+from sctn.spike_sums import mix_corners, window_sums
 
 
 class NetworkConfig(BaseModel):

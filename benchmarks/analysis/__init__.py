@@ -1,2 +1,3 @@
-"""A run's results read: tables (tables), the run's output directory (report), per-sequence result files
-(sequence_files), pictures (pictures) and the energy table (energy_table)."""
+"""A run's results read: tables (tables), one-pass and per-attribute tables (ope_tables, attribute_tables), the
+run's output directory (report), per-sequence result files (sequence_files), pictures (pictures), the energy
+table (energy_table) and learning curves (learning_curves)."""

@@ -17,7 +17,7 @@ from benchmarks.evaluation.protocol import SequenceResult
 MANIFEST = "run.json"  # written last: the run's id and each output's size and SHA-256 (dvsot.runtime.outputs)
 VIDEO_SEGMENTS = 300  # frames of a video preview, one per segment
 OPE_FILES = ("ope.json", "ope.md", "success_plot.png", "precision_plot.png")
-ATTRIBUTE_FILES = ("attributes.md", "attributes.json", "attributes.png")  # benchmarks.evaluation.attributes.write_attributes
+ATTRIBUTE_FILES = ("attributes.md", "attributes.json", "attributes.png")  # attribute_tables.write_attributes
 
 
 def video_name(sequence: str) -> str:
@@ -68,12 +68,12 @@ def _write_all(out: Path, summary, results: list[SequenceResult], protocol: str,
     from benchmarks.analysis.tables import write_tables, write_text_atomic
 
     if protocol == "ope":
-        from benchmarks.evaluation.ope import write_ope
+        from benchmarks.analysis.ope_tables import write_ope
 
         paths: dict[str, Path | str] = {f"ope:{x.name}": x for x in write_ope(summary, out)}
     else:
         paths = dict(write_tables(summary, out))
-    from benchmarks.evaluation.attributes import write_attributes
+    from benchmarks.analysis.attribute_tables import write_attributes
 
     paths.update({f"attributes:{x.name}": x for x in write_attributes(results, out, protocol)})
     files = write_sequence_files(results, out, vot=protocol != "ope")

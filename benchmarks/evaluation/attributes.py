@@ -14,13 +14,13 @@ file: its segments count neither as having it nor as lacking it.
   (scene file);
 - distractor_nearby: at least `distractor_share` of the events in the box grown by half its size on each
   side made by distractors (per-event labels).
+
+The table, JSON and bar chart of the scores per attribute: benchmarks.analysis.attribute_tables.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -171,106 +171,3 @@ def attribute_ope(results: list[SequenceResult]) -> dict[str, dict[str, dict]]:
                          "segments": int(np.count_nonzero(~np.isnan(iou)))}
         out[tracker] = per
     return out
-
-
-def _columns(summary: dict) -> list[str]:
-    names = {n for per in summary.values() for n in per}
-    return [n for n in (ALL, *ATTRIBUTES) if n in names]
-
-
-def _counts(summary: dict, cols: list[str], protocol: str) -> list[int]:
-    """Counted segments per column: the first tracker's that has it (every tracker runs on the same files)."""
-    counts = []
-    for c in cols:
-        v = next(per[c] for per in summary.values() if c in per)
-        counts.append(v.segments if protocol == "ar" else v["segments"])
-    return counts
-
-
-def _f(v: float) -> str:
-    return "-" if v is None or np.isnan(v) else f"{v:.3f}"
-
-
-def format_attributes(summary: dict, protocol: str = "ar") -> str:
-    """A Markdown table, a row per tracker, a column per attribute beside 'all': ARscore (A / R), or AUC (P@20)
-    for one-pass runs; the counted segments under each header."""
-    from benchmarks.evaluation.safe_names import markdown_cell
-
-    from benchmarks.evaluation.ope import PRECISION_PX
-
-    cols = _columns(summary)
-    counts = _counts(summary, cols, protocol)
-    lines = ["| tracker | " + " | ".join(f"{c} ({k} seg)" for c, k in zip(cols, counts)) + " |",
-             "|---" * (len(cols) + 1) + "|"]
-    for tracker, per in summary.items():
-        cells = []
-        for c in cols:
-            v = per.get(c)
-            if v is None:
-                cells.append("")
-            elif protocol == "ar":
-                cells.append(f"**{_f(v.arscore)}** ({_f(v.accuracy)} / {_f(v.robustness)})")
-            else:
-                cells.append(f"**{_f(v['AUC'])}** ({_f(v[f'P@{PRECISION_PX}'])})")
-        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
-    what = "ARscore (A / R)" if protocol == "ar" else "success AUC (precision at 20 px)"
-    return "\n".join(lines) + f"\n\nEach cell: {what} over the counted segments with the attribute " \
-                              "(benchmarks/evaluation/attributes.py; thresholds in THRESHOLDS).\n"
-
-
-def attributes_json(summary: dict, protocol: str = "ar") -> dict:
-    """The summary as plain values (NaN as None), with the thresholds."""
-    from dataclasses import asdict
-
-    def clean(v):
-        if isinstance(v, Scores):
-            v = asdict(v)
-        if isinstance(v, dict):
-            return {k: clean(x) for k, x in v.items()}
-        return None if isinstance(v, float) and np.isnan(v) else v
-    return {"protocol": protocol, "thresholds": asdict(THRESHOLDS), "scores": clean(summary)}
-
-
-def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar") -> Path:
-    """A bar chart: per attribute (and 'all'), each tracker's ARscore (or success AUC); written atomically."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from benchmarks.evaluation.safe_names import plot_text
-    from dvsot.runtime.outputs import replacing
-
-    cols = _columns(summary)
-    fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(cols) + 2), 4))
-    width = 0.8 / max(len(summary), 1)
-    for k, (tracker, per) in enumerate(summary.items()):
-        values = [np.nan if c not in per else (per[c].arscore if protocol == "ar" else per[c]["AUC"]) for c in cols]
-        ax.bar(np.arange(len(cols)) + k * width, np.nan_to_num(values), width, label=plot_text(tracker))
-    ax.set_xticks(np.arange(len(cols)) + width * (len(summary) - 1) / 2)
-    ax.set_xticklabels([f"{c} ({k})" for c, k in zip(cols, _counts(summary, cols, protocol))], rotation=30, ha="right")
-    ax.set_ylabel("ARscore" if protocol == "ar" else "success AUC")
-    ax.set_ylim(0, 1.02)
-    ax.set_title("per attribute (counted segments in brackets)")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3, axis="y")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with replacing(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
-
-
-def write_attributes(results: list[SequenceResult], out_dir: str | os.PathLike, protocol: str = "ar") -> list[Path]:
-    """attributes.md, attributes.json and attributes.png of a run's results in out_dir."""
-    import json
-
-    from benchmarks.analysis.tables import write_text_atomic
-
-    summary = attribute_scores(results) if protocol == "ar" else attribute_ope(results)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    return [write_text_atomic(out / "attributes.md", format_attributes(summary, protocol)),
-            write_text_atomic(out / "attributes.json", json.dumps(attributes_json(summary, protocol), indent=2)),
-            plot_attributes(summary, out / "attributes.png", protocol)]

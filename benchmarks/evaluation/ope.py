@@ -10,19 +10,15 @@ box); a prediction that is not finite counts as IoU 0 and an infinite centre err
 - Precision curve: the fraction with centre distance <= d pixels, d = 0 .. 50; precision is its value
   at 20 px.
 Per sequence, and over all counted segments of all sequences together ("all"), as A and R are pooled.
+The table, plots and files of these scores: benchmarks.analysis.ope_tables.
 """
 
 from __future__ import annotations
-
-import json
-import os
-from pathlib import Path
 
 import numpy as np
 
 from benchmarks.evaluation.metrics import ALL
 from benchmarks.evaluation.protocol import SequenceResult
-from benchmarks.evaluation.safe_names import markdown_cell  # sequence and tracker names are free text
 
 IOU_THRESHOLDS = np.linspace(0.0, 1.0, 21)
 PIXEL_THRESHOLDS = np.arange(0, 51, dtype=np.float64)
@@ -82,68 +78,3 @@ def summarise_ope(results: list[SequenceResult]) -> dict:
             per[ALL] = _scores(np.concatenate([r.iou for r in ok]),
                                np.concatenate([r.extra["centre_error"] for r in ok]))
     return out
-
-
-def format_ope(summary: dict) -> str:
-    """A Markdown table: success AUC / precision at 20 px per tracker and sequence, then 'all'."""
-    sequences: list[str] = []
-    for per in summary.values():
-        sequences.extend(s for s in per if s != ALL and s not in sequences)
-    head = "| tracker | " + " | ".join(map(markdown_cell, sequences)) + f" | {ALL} (AUC / P@{PRECISION_PX}) |"
-    lines = [head, "|---" * (len(sequences) + 2) + "|"]
-    for tracker, per in summary.items():
-        cells = []
-        for seq in sequences + [ALL]:
-            v = per.get(seq)
-            if v is None:
-                cells.append("")
-            elif "error" in v:
-                cells.append("failed")
-            else:
-                cells.append(f"{v['AUC']:.3f} / {v[f'P@{PRECISION_PX}']:.3f}")
-        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def plot_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
-    """success_plot.png and precision_plot.png of every tracker's 'all' curves, written atomically."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from benchmarks.evaluation.safe_names import plot_text
-    from dvsot.runtime.outputs import replacing
-
-    written = []
-    for name, xs, key, score, xlabel in (
-            ("success_plot.png", IOU_THRESHOLDS, "success", "AUC", "overlap threshold (IoU)"),
-            ("precision_plot.png", PIXEL_THRESHOLDS, "precision", f"P@{PRECISION_PX}", "location error threshold (px)")):
-        fig, ax = plt.subplots(figsize=(5, 4))
-        for tracker, per in summary.items():
-            if ALL in per:
-                ax.plot(xs, per[ALL][key], label=f"{plot_text(tracker)} [{per[ALL][score]:.3f}]")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel("success rate" if key == "success" else "precision")
-        ax.set_ylim(0, 1.02)
-        ax.set_title(f"one-pass evaluation: {key} ({score} in brackets)")
-        ax.legend(loc="lower left" if key == "success" else "lower right", fontsize=8)
-        ax.grid(alpha=0.3)
-        path = Path(out_dir) / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with replacing(path) as tmp:
-            fig.savefig(tmp, dpi=120, bbox_inches="tight")
-        plt.close(fig)
-        written.append(path)
-    return written
-
-
-def write_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
-    """ope.json (scores and curves), ope.md (the table) and the two plots in out_dir."""
-    from benchmarks.analysis.tables import write_text_atomic
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [write_text_atomic(out / "ope.json", json.dumps(summary, indent=2)),
-             write_text_atomic(out / "ope.md", format_ope(summary) + "\n")]
-    return paths + plot_ope(summary, out)

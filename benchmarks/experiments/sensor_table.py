@@ -9,7 +9,7 @@ Every sequence of the split in --data needs its rendered frames in FRAMES/<name>
 naming it. Under each --preset (the preset's own fields, or with `as-rendered` the settings the sequence's file
 records, its scene's `events:` included; always with the sequence's own event seed:
 benchmarks.experiments.robustness.resimulate) a sequence's frames become OUT/<preset>/<name>.h5, and `dvsot
-bench`'s run (benchmarks.evaluation.plan.run_benchmark, AR protocol, the same trackers and options under every
+bench`'s run (benchmarks.bench.plan.run_benchmark, AR protocol, the same trackers and options under every
 preset) writes its report into OUT/<preset>/bench/. OUT/table.md: one row per tracker, its ARscore, A and R
 pooled over the split's sequences under each preset; OUT/table.csv: those rows (sequence `all`), then one per
 tracker and sequence, with each preset's events and measured noise rate; with --picture NAME:K,
@@ -50,7 +50,7 @@ class SensorTable:
     presets: list[str]
     trackers: list[str]
     sequences: list[str]
-    runs: dict = field(default_factory=dict)  # preset -> benchmarks.evaluation.plan.BenchmarkRun
+    runs: dict = field(default_factory=dict)  # preset -> benchmarks.bench.plan.BenchmarkRun
     events: dict = field(default_factory=dict)  # preset -> sequence -> {events, noise_events, noise_hz, ...}
     out_dir: Path = Path()
 
@@ -128,7 +128,7 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
         options: Sequence[str] = (), max_segments: int | None = None, jobs: int | None = None, energy: bool = True,
         picture: tuple[str, int] | None = None, progress: bool = False) -> SensorTable:
     """The whole table into out_dir as one run (see the module docstring); UserError before any work on bad input."""
-    from benchmarks.evaluation.plan import plan_benchmark, resolve_data, run_benchmark, run_files
+    from benchmarks.bench.plan import plan_benchmark, resolve_data, run_benchmark, run_files
     from benchmarks.experiments.robustness import check_segment, picture as draw_picture, resimulate
     from dvsot.core.errors import UserError
     from dvsot.events import EventParams
@@ -184,7 +184,7 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
 def describe(table: SensorTable, data: Sequence[str] | None, split: str, frames: str | Path,
              max_segments: int | None) -> str:
     """table.md's line under its title: what was re-simulated from where and how it was scored."""
-    from benchmarks.evaluation.plan import DEFAULT_DATA
+    from benchmarks.bench.plan import DEFAULT_DATA
 
     where = " ".join(str(d) for d in data) if data else DEFAULT_DATA
     first = f"; the first {max_segments} segments of each" if max_segments is not None else ""
@@ -268,7 +268,7 @@ def write_tables(table: SensorTable, out_dir: Path, description: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: 0, or 1 if a tracker raised on some sequence under some preset."""
-    from benchmarks.evaluation.plan import DEFAULT_DATA
+    from benchmarks.bench.plan import DEFAULT_DATA
     from dvsot.events.presets import PRESETS
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

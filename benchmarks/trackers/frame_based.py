@@ -24,7 +24,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from benchmarks.evaluation.atsltd import atsltd_frame_bgr
+from benchmarks.trackers.atsltd import atsltd_frame_bgr
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment

@@ -69,7 +69,8 @@ class SCTNBenchTracker(Tracker):
         """Operations of the segment just tracked: the search actually run (fast), or every candidate's own evaluation
         (spikes x fan-out, counted from each of the N candidates' spikes; bias additions apart)."""
         from sctn.encoding import encode_search
-        from sctn.energy import bias_additions, candidate_ops, count_search_ops, snn_state_updates, tracker_energy
+        from sctn.energy import bias_additions, count_search_ops, snn_state_updates, tracker_energy
+        from sctn.sparse.evaluate import candidate_ops
 
         model, cfg = self.tracker.model, self.tracker.model.cfg
         candidates, ref_box = self.tracker.last_search

@@ -24,7 +24,7 @@ Outputs are written only when every run has finished, as temp files renamed into
 or bad input never leaves a table half-written, nor new tables beside old pictures.
 
 The command parses its flags and calls the library: benchmarks.run_benchmark (the checks, the runs,
-the tables and the outputs; benchmarks/evaluation/plan.py).
+the tables and the outputs; benchmarks/bench/plan.py), its messages naming these flags (FLAGS).
 
 Exit status:
   0  every tracker ran on every sequence; tables written.
@@ -39,7 +39,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from benchmarks.evaluation.plan import DEFAULT_DATA, _options  # noqa: F401  (_options: this module's old name)
+from benchmarks.bench.plan import DEFAULT_DATA, _options  # noqa: F401  (_options: this module's old name)
+
+# run_benchmark's parameters as the flags that set them, for its messages (dvsot.core.errors.label)
+FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": "--jobs", "scheduler": "--scheduler",
+         "tracker_modules": "--tracker-module", "max_segments": "--max-segments", "plots": "--plots",
+         "videos": "--video", "checkpoint": "--checkpoint", "options": "--option"}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -76,11 +81,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Check everything, run every tracker on every sequence, then print and write the tables (exit 1 on failures)."""
-    from benchmarks.evaluation.plan import run_benchmark, tables_text
+    from benchmarks.bench.plan import run_benchmark, tables_text
 
     done = run_benchmark(args.tracker, args.data, args.split, args.out, args.jobs, args.scheduler, args.tracker_module,
                          args.max_segments, args.plots, args.video, args.checkpoint, not args.no_energy, args.option,
-                         args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)))
+                         args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)), labels=FLAGS)
     print("written: " + ", ".join(str(x) for x in done.paths.values()))
     for r in done.failed:
         print(f"dvsot bench: failed: {r.tracker} on {r.sequence}: {r.error}", file=sys.stderr)

@@ -1,2 +1,2 @@
-"""SCTN evaluated over the events and spikes that exist: per-candidate evaluation (evaluate), its compiled
-kernels (kernels) and event-driven weighted sums of spike maps (spike_sums)."""
+"""SCTN evaluated over the events and spikes that exist: per-candidate evaluation and its operation counts
+(evaluate) and their compiled kernels (kernels)."""

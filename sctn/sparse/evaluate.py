@@ -36,7 +36,7 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import box_canvas, encode_boxes
-from sctn.energy import LAYER_NAMES, conv_fanout
+from sctn.energy import LAYER_NAMES, conv_fanout, count_synaptic_ops
 from sctn.network import SCTN
 from sctn.sparse.kernels import conv_layers
 
@@ -176,6 +176,19 @@ def candidate_record(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np
     each {layer: (N,) float64}; "maps": the spikes of conv3 (flattened as fc1 reads them), fc1, fc2 and the
     output layer (its neurons that exist), each (T + tail, N, width) as forward_record gives them."""
     return _evaluate(model, events, t0_us, boxes_xywh, record=True)
+
+
+def candidate_ops(model: SCTN, events, t0_us: int, boxes_xywh, batch: int = 64) -> float:
+    """AC operations of evaluating each candidate box on its own masked input (the paper's tracking), summed over the
+    boxes: event-driven (candidate_record) where that is exact, else densely (sctn.energy.count_synaptic_ops)."""
+    if exact_blocker(model) is None:
+        _, rec = candidate_record(model, events, t0_us, boxes_xywh)
+        return float(sum(float(v.sum()) for v in rec["ac_ops"].values()))
+    cfg, total = model.cfg, 0.0
+    for i in range(0, len(boxes_xywh), batch):
+        x = encode_boxes(events, t0_us, boxes_xywh[i:i + batch], cfg)
+        total += count_synaptic_ops(model, x)["ac_ops_per_sample"] * len(x)
+    return total
 
 
 def _evaluate(model: SCTN, events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, record: bool):

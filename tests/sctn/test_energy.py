@@ -56,7 +56,8 @@ def test_search_ops_of_one_aligned_candidate_equal_the_per_candidate_count():
 
 
 def test_per_candidate_energy_counts_every_candidates_own_spikes_and_biases_apart():
-    from sctn.energy import bias_additions, candidate_ops
+    from sctn.energy import bias_additions
+    from sctn.sparse.evaluate import candidate_ops
 
     torch.manual_seed(1)
     rng = np.random.default_rng(1)

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from pydantic import Field
 
-from benchmarks.evaluation.atsltd import atsltd_frame
+from benchmarks.trackers.atsltd import atsltd_frame
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC
 from benchmarks.trackers import register

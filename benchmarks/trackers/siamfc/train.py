@@ -24,7 +24,7 @@ import torch
 from pydantic import Field
 from torch.nn import functional as F
 
-from benchmarks.evaluation.atsltd import atsltd_frame
+from benchmarks.trackers.atsltd import atsltd_frame
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
 from dvsot.core.bounds import MAX_LEARNING_RATE

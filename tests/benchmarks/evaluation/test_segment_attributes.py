@@ -1,4 +1,5 @@
-"""Segment attributes from ground truth (benchmarks/evaluation/attributes.py) and scores per attribute."""
+"""Segment attributes from ground truth (benchmarks/evaluation/attributes.py) and scores per attribute (their tables:
+tests/benchmarks/analysis/test_attribute_tables.py)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.evaluation.attributes import (THRESHOLDS, attribute_ope, attribute_scores, format_attributes,
-                                   segment_attributes, write_attributes)
+from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, segment_attributes
 from benchmarks.evaluation.protocol import SequenceResult
 from dvsot.scene import parse_scene
 from dvsot.dataset import Dataset, DatasetWriter
@@ -95,30 +95,12 @@ def test_scores_per_attribute_pool_the_counted_segments_with_it():
     assert s["occlusion"].segments == 2 and s["occlusion"].accuracy == pytest.approx(0.4)
     assert s["occlusion"].robustness == pytest.approx(0.5)
     assert s["small_target"].segments == 4 and s["small_target"].robustness == pytest.approx(0.75)
-    table = format_attributes(attribute_scores([a, b]))
-    assert "| t |" in table and "occlusion (2 seg)" in table and "small_target (4 seg)" in table
 
 
-def test_ope_success_per_attribute(tmp_path):
+def test_ope_success_per_attribute():
     a = _result("t", "a", [np.nan, 0.8, 0.2, 0.6], {"occlusion": [0, 0, 1, 1]}, centre=[np.nan, 1, 30, 5])
     s = attribute_ope([a])["t"]
     # success: fraction of IoU > threshold over 21 thresholds, mean -> AUC; 0.2 and 0.6 in the occluded ones
     want = np.mean([(np.array([0.2, 0.6]) > th).mean() for th in np.linspace(0, 1, 21)])
     assert s["occlusion"]["AUC"] == pytest.approx(want) and s["occlusion"]["segments"] == 2
     assert s["occlusion"]["P@20"] == pytest.approx(0.5)
-    paths = write_attributes([a], tmp_path, protocol="ope")
-    assert [p.name for p in paths] == ["attributes.md", "attributes.json", "attributes.png"]
-    data = json.loads((tmp_path / "attributes.json").read_text())
-    assert data["thresholds"]["occlusion_visibility"] == THRESHOLDS.occlusion_visibility
-
-
-def test_bench_report_holds_the_attribute_files(tmp_path):
-    from benchmarks.analysis.report import report_files, write_report
-    from benchmarks.analysis.tables import summarise
-
-    results = [_result("t", "a", [np.nan, 0.8, 0.2, 0.6], {"occlusion": [0, 0, 1, 1]})]
-    paths = write_report(tmp_path, summarise(results), results)
-    for name in ("attributes.md", "attributes.json", "attributes.png"):
-        assert (tmp_path / name).is_file() and report_files()[name] == "tables"
-    assert "occlusion (2 seg)" in (tmp_path / "attributes.md").read_text()
-    assert json.loads((tmp_path / "run.json").read_text()) and paths["manifest"]

@@ -34,7 +34,7 @@ def _contents(directory):
 
 
 def test_the_table_under_two_presets(split, tmp_path, capsys):
-    from benchmarks.evaluation.plan import run_benchmark
+    from benchmarks.bench.plan import run_benchmark
     from dvsot.dataset import Dataset
 
     data, frames = split
@@ -93,7 +93,7 @@ def test_bad_picture_and_tracker_option_are_refused_before_any_simulation(split,
 
 
 def test_out_holds_one_run_whole(split, tmp_path, monkeypatch, capsys):
-    import benchmarks.evaluation.plan as plan
+    import benchmarks.bench.plan as plan
 
     data, frames = split
     out = tmp_path / "out"
@@ -160,7 +160,7 @@ def test_a_tracker_that_raises_on_a_sequence_is_marked_failed_and_the_exit_statu
 def test_as_rendered_re_simulates_each_file_with_its_own_settings(tmp_path, capsys):
     """A split made with a scene's own thresholds: `ideal` is the preset's fields, `as-rendered` the file's, whose
     table is `dvsot bench`'s on the split itself; a file that records no settings is refused naming it."""
-    from benchmarks.evaluation.plan import run_benchmark
+    from benchmarks.bench.plan import run_benchmark
     from dvsot.dataset import Dataset
     from dvsot.events import EventParams
 

@@ -1,10 +1,10 @@
-"""The fast mode's kernels (sctn/sparse/spike_sums.py) on hand-made spikes: window sums and the corner mix."""
+"""The fast mode's kernels (sctn/spike_sums.py) on hand-made spikes: window sums and the corner mix."""
 
 import numpy as np
 
 
 def test_window_sums_add_the_weights_of_the_spikes_inside_each_kept_window():
-    from sctn.sparse.spike_sums import window_sums
+    from sctn.spike_sums import window_sums
 
     spikes = np.zeros((2, 4, 5, 3), np.uint8)  # (T, H, W, C)
     spikes[0, 1, 2, 0] = spikes[0, 1, 2, 2] = 1  # two channels of one cell
@@ -22,7 +22,7 @@ def test_window_sums_add_the_weights_of_the_spikes_inside_each_kept_window():
 
 
 def test_mix_corners_weights_each_candidates_corner_sums():
-    from sctn.sparse.spike_sums import mix_corners
+    from sctn.spike_sums import mix_corners
 
     sums = np.arange(2 * 3 * 2, dtype=np.float32).reshape(2, 3, 2)  # (T, U, width)
     slots = np.array([[0, 2, 0, 0], [1, 1, 2, 0]])

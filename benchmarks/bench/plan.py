@@ -3,6 +3,9 @@
 `run_benchmark` is `dvsot bench`: `plan_benchmark` checks every input and output, `benchmark` runs every
 tracker on every sequence, and the tables, energy table and report are made from the results and written
 together (benchmarks.analysis.report), only when every run has finished.
+
+Messages name a setting by its parameter name (`trackers`, `data`, `out_dir`, `options`, ...); a command passes
+{name: flag} as `labels` to have its flags named instead (dvsot.core.errors.label).
 """
 
 from __future__ import annotations
@@ -10,7 +13,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
+
+from dvsot.core.errors import label
 
 DEFAULT_DATA = "data/dvsot21"
 CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
@@ -37,7 +42,7 @@ class Plan:
     videos: list[str] = field(default_factory=list)
 
 
-def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
+def _options(specs: list[str], trackers: list[str], labels: Mapping[str, str] | None = None) -> dict[str, dict]:
     """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
     from dvsot.scene import yaml_value
     from dvsot.core.errors import UserError
@@ -47,28 +52,28 @@ def _options(specs: list[str], trackers: list[str]) -> dict[str, dict]:
         name, _, rest = spec.partition(".")
         key, eq, raw = rest.partition("=")
         if not (name and key and eq):
-            raise UserError(f"--option {spec!r}: expected TRACKER.KEY=VALUE")
+            raise UserError(f"{label('options', labels)} {spec!r}: expected TRACKER.KEY=VALUE")
         if name not in trackers:
-            raise UserError(f"--option {spec!r}: tracker '{name}' is not in this run")
+            raise UserError(f"{label('options', labels)} {spec!r}: tracker '{name}' is not in this run")
         out.setdefault(name, {})[key] = yaml_value(raw)  # as in a scene file: false, False, 0.05, 1e-3, text
     return out
 
 
-def resolve_data(specs: list[str] | None, split: str) -> dict[str, Path]:
-    """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), the default data if no --data."""
+def resolve_data(specs: list[str] | None, split: str, labels: Mapping[str, str] | None = None) -> dict[str, Path]:
+    """{sequence name: dataset file} to benchmark (benchmarks.find_sequences), DEFAULT_DATA if specs is None."""
     from benchmarks.evaluation.runner import find_sequences
     from dvsot.core.errors import UserError
 
     if specs is None:
         if not Path(DEFAULT_DATA).is_dir():
-            raise UserError(f"{DEFAULT_DATA}: no default data; make it with "
-                            f"`dvsot generate blender_scenes/*.yaml --out-dir {DEFAULT_DATA}` or pass --data")
+            raise UserError(f"{DEFAULT_DATA}: no default data; make it with `dvsot generate blender_scenes/*.yaml "
+                            f"--out-dir {DEFAULT_DATA}` or give {label('data', labels)}")
         specs = [DEFAULT_DATA]
     return find_sequences(specs, None if split == "any" else split)
 
 
 def _option_spec(tracker: str, key: str | None, specs: list[str]) -> str:
-    """The --option text that set tracker.key (the last one, as it wins), or all of the tracker's."""
+    """The TRACKER.KEY=VALUE text that set tracker.key (the last one, as it wins), or all of the tracker's."""
     mine = [s for s in specs if s.startswith(f"{tracker}.")]
     if key is not None:
         hits = [s for s in mine if s.partition(".")[2].partition("=")[0] == key]
@@ -89,15 +94,15 @@ def _option_key(exc: BaseException, options: dict) -> str | None:
     return next(iter(options)) if len(options) == 1 else None
 
 
-def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
-    """The one-line UserError for a tracker that its --option values did not build."""
+def _option_error(name: str, options: dict, exc: Exception, specs: list[str], labels: Mapping[str, str] | None):
+    """The one-line UserError for a tracker that its option values did not build."""
     from dvsot.core.errors import UserError
 
     from benchmarks.evaluation.models import error_text
 
     detail = error_text(exc)
     if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
-        return UserError(f"--tracker {name}: cannot build the tracker ({detail})")
+        return UserError(f"{label('trackers', labels)} {name}: cannot build the tracker ({detail})")
     key = _option_key(exc, options)
     if key is not None:
         detail = detail.removeprefix(f"field '{key}': ")
@@ -105,10 +110,11 @@ def _option_error(name: str, options: dict, exc: Exception, specs: list[str]):
             detail = f"tracker '{name}' has no option '{key}'"
         elif "takes no arguments" in detail:
             detail = f"tracker '{name}' takes no options"
-    return UserError(f"--option {_option_spec(name, key, specs)}: {detail}")
+    return UserError(f"{label('options', labels)} {_option_spec(name, key, specs)}: {detail}")
 
 
-def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str]) -> None:
+def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[str],
+                   labels: Mapping[str, str] | None = None) -> None:
     """Build each tracker once with its options, so that a bad option fails now, not as a "failed" run."""
     from benchmarks.trackers import get_tracker
     from dvsot.core.errors import UserError
@@ -119,24 +125,26 @@ def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[st
         except UserError:
             raise
         except Exception as exc:
-            raise _option_error(name, options.get(name, {}), exc, specs) from None
+            raise _option_error(name, options.get(name, {}), exc, specs, labels) from None
 
 
-_WHO_ASKS = {"tables": "--out", "manifest": "--out (the run's manifest)", "plots": "--plots", "video": "--video",
-             "energy": "--out (energy table)"}  # benchmarks.report_files' kinds, as the flags that ask for them
+# report_files' kinds, as the settings that ask for them (and what the file is, where that is not the setting's job)
+_WHO_ASKS = {"tables": ("out_dir", ""), "manifest": ("out_dir", " (the run's manifest)"), "plots": ("plots", ""),
+             "video": ("videos", ""), "energy": ("out_dir", " (energy table)")}
 
 
-def _output_names(protocol: str, plots: bool, videos: Sequence[str], energy: bool) -> dict[str, str]:
-    """{file name in --out: the flag that asks for it}."""
+def _output_names(protocol: str, plots: bool, videos: Sequence[str], energy: bool,
+                  labels: Mapping[str, str] | None = None) -> dict[str, str]:
+    """{file name in out_dir: the setting that asks for it}."""
     from benchmarks.analysis.report import report_files
 
     names = report_files(protocol, plots, list(videos), energy)
-    return {name: _WHO_ASKS[kind] for name, kind in names.items()}
+    return {name: label(_WHO_ASKS[kind][0], labels) + _WHO_ASKS[kind][1] for name, kind in names.items()}
 
 
 def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str = "ar", plots: bool = False,
               videos: Sequence[str] = (), energy: bool = True) -> list[str]:
-    """Every path (relative to --out) a run of these trackers on these sequences may write: the report's files
+    """Every path (relative to out_dir) a run of these trackers on these sequences may write: the report's files
     (the energy table's only when a tracker of CHECKPOINT_TRACKERS runs) and the per-sequence files."""
     from benchmarks.analysis.sequence_files import per_sequence_files
 
@@ -145,7 +153,7 @@ def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str
             *(str(p) for p in per_sequence_files(list(trackers), sequences, protocol))]
 
 
-def check_video(sequence: str, path: Path) -> None:
+def check_video(sequence: str, path: Path, labels: Mapping[str, str] | None = None) -> None:
     """UserError now if the preview of a sequence would hold more frames in memory than dvsot.core.bounds allows."""
     from benchmarks.analysis.report import VIDEO_SEGMENTS
     from dvsot.dataset import Dataset
@@ -155,27 +163,29 @@ def check_video(sequence: str, path: Path) -> None:
     with Dataset(path) as ds:
         problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
     if problem:
-        raise UserError(f"--video {sequence}: {path}: {problem}")
+        raise UserError(f"{label('videos', labels)} {sequence}: {path}: {problem}")
 
 
-def check_outputs(out_dir: Path, names: dict[str, str], inputs: list) -> None:
-    """--out is a directory (or will be made) and none of the files to write in it is a directory or an input."""
+def check_outputs(out_dir: Path, names: dict[str, str], inputs: list,
+                  labels: Mapping[str, str] | None = None) -> None:
+    """out_dir is a directory (or will be made) and none of the files to write in it is a directory or an input."""
     from dvsot.runtime.outputs import output_dir, output_file
 
-    output_dir(out_dir, "--out")
+    output_dir(out_dir, label("out_dir", labels))
     if out_dir.is_dir():
         for name, flag in names.items():
             output_file(out_dir / name, flag, inputs)
 
 
 def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, split: str = "test",
-                   out: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
+                   out_dir: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
                    tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
                    videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
-                   options: Sequence[str] = (), protocol: str = "ar") -> Plan:
+                   options: Sequence[str] = (), protocol: str = "ar", labels: Mapping[str, str] | None = None) -> Plan:
     """Check every input and output of a run; UserError (and nothing done) on the first problem.
 
-    Messages name the settings as `dvsot bench`'s flags do; options are TRACKER.KEY=VALUE strings.
+    options are TRACKER.KEY=VALUE strings; messages name the settings by these parameters' names, or as
+    `labels` ({name: flag}) says.
     """
     import os
     import time
@@ -187,37 +197,40 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     from dvsot.runtime.outputs import output_dir, run_dir
     from dvsot.core.bounds import MAX_WORKERS, range_problem
 
+    labels = dict(labels or {})
+    out_label, option_label = label("out_dir", labels), label("options", labels)
     no_energy, option_specs = not energy, list(options)
-    problem = jobs is not None and range_problem("--jobs", jobs, 1, MAX_WORKERS)
+    problem = jobs is not None and range_problem(label("jobs", labels), jobs, 1, MAX_WORKERS)
     if problem:
         raise UserError(problem)
     if scheduler:
-        from dvsot.pipeline.scene_runner import parse_scheduler
+        from dvsot.runtime.dask_tasks import parse_scheduler
 
-        parse_scheduler(scheduler, "--scheduler")
+        parse_scheduler(scheduler, label("scheduler", labels))
     if max_segments is not None and max_segments < 1:
-        raise UserError(f"--max-segments must be >= 1, got {max_segments}")
+        raise UserError(f"{label('max_segments', labels)} must be >= 1, got {max_segments}")
     for m in tracker_modules:
-        load_tracker_module(m, "--tracker-module")
+        load_tracker_module(m, label("tracker_modules", labels))
     trackers = list(dict.fromkeys(trackers))
     for name in trackers:
         tracker_class(name)
-    options = _options(option_specs, trackers)
+    options = _options(option_specs, trackers, labels)
     sctn = "sctn" in trackers
     energy = not no_energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
     if checkpoint is not None:
         takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
         if not takers:
-            raise UserError(f"--checkpoint {checkpoint}: only used by --tracker sctn, sctn_ann or siamfc, "
-                            "none of which is in this run")
+            raise UserError(f"{label('checkpoint', labels)} {checkpoint}: only used by {label('trackers', labels)} "
+                            "sctn, sctn_ann or siamfc, none of which is in this run")
         if len(takers) > 1:
-            raise UserError(f"--checkpoint {checkpoint}: {', '.join(takers)} all take a checkpoint; give each "
-                            "its own with --option NAME.checkpoint=PATH")
+            raise UserError(f"{label('checkpoint', labels)} {checkpoint}: {', '.join(takers)} all take a checkpoint; "
+                            f"give each its own with {option_label} NAME.checkpoint=PATH")
         if "checkpoint" in options.get(takers[0], {}):
-            raise UserError(f"--option {takers[0]}.checkpoint: give the checkpoint once, with --checkpoint")
+            raise UserError(f"{option_label} {takers[0]}.checkpoint: give the checkpoint once, with "
+                            f"{label('checkpoint', labels)}")
         options.setdefault(takers[0], {})["checkpoint"] = checkpoint
-    out_dir = Path(out or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
-    sequences = resolve_data(data, split)
+    out_dir = Path(out_dir or f"runs/bench-{time.strftime('%Y%m%d-%H%M%S')}")
+    sequences = resolve_data(data, split, labels)
     files = list(sequences.values())
     from benchmarks.evaluation.protocol import nothing_to_score
 
@@ -226,22 +239,24 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         if problem:
             raise UserError(problem)
     named: dict[str, str] = {}
+    video_label = label("videos", labels)
     for seq in videos:
         from benchmarks.analysis.report import video_name
 
         if named.get(video_name(seq), seq) != seq:
-            raise UserError(f"--video {seq}: its file name {video_name(seq)} is also --video {named[video_name(seq)]}'s")
+            raise UserError(f"{video_label} {seq}: its file name {video_name(seq)} is also "
+                            f"{video_label} {named[video_name(seq)]}'s")
         named[video_name(seq)] = seq
         if seq not in sequences:
-            raise UserError(f"--video {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
-        check_video(seq, sequences[seq])
-    check_outputs(out_dir, _output_names(protocol, plots, videos, energy), files)
-    for name in trackers:  # <out>/<tracker>/ holds the per-sequence files
-        output_dir(out_dir / file_stem(name), "--out (per-sequence results)")
-    # every path under --out, checked now; --out holds this run's files only (benchmarks.analysis.report)
-    run_dir(out_dir, "--out", run_files(trackers, sequences, protocol, plots, videos, energy))
+            raise UserError(f"{video_label} {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
+        check_video(seq, sequences[seq], labels)
+    check_outputs(out_dir, _output_names(protocol, plots, videos, energy, labels), files, labels)
+    for name in trackers:  # <out_dir>/<tracker>/ holds the per-sequence files
+        output_dir(out_dir / file_stem(name), f"{out_label} (per-sequence results)")
+    # every path under out_dir, checked now; out_dir holds this run's files only (benchmarks.analysis.report)
+    run_dir(out_dir, out_label, run_files(trackers, sequences, protocol, plots, videos, energy))
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
-    check_trackers(trackers, options, option_specs)
+    check_trackers(trackers, options, option_specs, labels)
     if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
         model = load_sctn_checkpoint(None)
     ann_models, notes = energy_ann_models(trackers, options) if energy else ({}, ())
@@ -277,12 +292,13 @@ class BenchmarkRun:
 
 def tables_text(run: BenchmarkRun) -> str:
     """The run's tables as printed on a terminal: the protocol's table, per attribute, the energy table."""
+    from benchmarks.analysis.attribute_tables import format_attributes
     from benchmarks.analysis.tables import terminal
-    from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, format_attributes
+    from benchmarks.evaluation.attributes import attribute_ope, attribute_scores
 
     protocol = run.plan.protocol
     if protocol == "ope":
-        from benchmarks.evaluation.ope import format_ope
+        from benchmarks.analysis.ope_tables import format_ope
 
         parts = [format_ope(run.summary)]
     else:
@@ -297,21 +313,23 @@ def tables_text(run: BenchmarkRun) -> str:
 
 
 def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, split: str = "test",
-                  out: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
+                  out_dir: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
                   tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
                   videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
                   options: Sequence[str] = (), protocol: str = "ar", progress: bool = True,
-                  show: Callable[[BenchmarkRun], None] | None = None) -> BenchmarkRun:
+                  show: Callable[[BenchmarkRun], None] | None = None,
+                  labels: Mapping[str, str] | None = None) -> BenchmarkRun:
     """Check everything (plan_benchmark), run every tracker on every sequence, make and write the tables.
 
     `show` gets the finished run before any file is written (its `paths` still empty); a tracker that
-    raises on a sequence is a result with `error` set (`BenchmarkRun.failed`), the tables still written.
+    raises on a sequence is a result with `error` set (`BenchmarkRun.failed`), the tables still written;
+    `labels` as plan_benchmark takes them.
     """
     from benchmarks.analysis.report import write_report
     from benchmarks.analysis.tables import summarise
 
-    p = plan_benchmark(trackers, data, split, out, jobs, scheduler, tracker_modules, max_segments, plots, videos,
-                       checkpoint, energy, options, protocol)
+    p = plan_benchmark(trackers, data, split, out_dir, jobs, scheduler, tracker_modules, max_segments, plots, videos,
+                       checkpoint, energy, options, protocol, labels)
     results = track(p, progress)
     if protocol == "ope":
         from benchmarks.evaluation.ope import summarise_ope

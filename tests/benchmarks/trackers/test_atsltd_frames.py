@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from benchmarks.evaluation.atsltd import atsltd_frame, atsltd_frame_bgr
+from benchmarks.trackers.atsltd import atsltd_frame, atsltd_frame_bgr
 from dvsot.events import EventBatch
 
 
