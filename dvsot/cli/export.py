@@ -30,15 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export the events (and boxes); print what was written."""
-    from dvsot.interop.event_files import boxes_path, event_format, export_dataset, objects_path
-    from dvsot.runtime.outputs import output_file
+    from dvsot.interop.event_files import export_dataset
 
-    event_format(args.output, "-o")  # an unknown suffix fails before anything is read
-    output_file(args.output, "-o", [args.file])
-    if event_format(args.output, "-o") == "csv":  # written only when the file has labels
-        output_file(objects_path(args.output), "-o (its .objects.csv)", [args.file])
-    if not args.no_boxes:
-        output_file(boxes_path(args.output), "-o (its .boxes.csv)", [args.file])
-    for path in export_dataset(args.file, args.output, evt_version=f"evt{args.evt}", boxes=not args.no_boxes):
+    for path in export_dataset(args.file, args.output, evt_version=f"evt{args.evt}", boxes=not args.no_boxes,
+                               labels=args.param_flags):
         print(path)
     return 0
