@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 
 # library parameters whose flag is not the parameter's own name as a long option
-RENAMED = {"out_path": "-o", "out": "-o", "box_times": "--box-times-us"}
+RENAMED = {"out_path": "-o", "out": "-o", "output": "-o", "box_times": "--box-times-us", "sigma_cp": "--sigma",
+           "sigma_cn": "--sigma"}
 
 
 def flag_labels(parser: argparse.ArgumentParser) -> dict[str, str]:
