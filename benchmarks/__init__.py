@@ -7,7 +7,8 @@ metrics (`scores`, `pooled`, `ar_score`, `Scores`), `summarise` (results -> a ty
 the tables' data; `summarise_ope` for one-pass runs), `write_report` (a run's tables,
 per-sequence files, pictures and manifest, written together), `energy_table` (the paper's Table 3) and
 `find_sequences` (the files to run on), and training: `train_model` (any registered model to a checkpoint),
-`train_siamfc`, and the training registry (`TRAINERS`, `register_trainer`, `Trainer`). Checkpoints load through `sctn.load_checkpoint`.
+`train_siamfc`, and the training registry (`TRAINERS`, `register_trainer`, `Trainer`). Checkpoints load
+through `sctn.load_checkpoint`.
 """
 
 from dvsot.lazy import lazy_attributes

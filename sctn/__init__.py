@@ -1,8 +1,9 @@
 """SCTN: the spiking convolutional tracking network (C-LIF neurons, STCA-style training, tracking, energy).
 
 Public names (each imported on first use): the model `SCTN` and its `NetworkConfig`, the tracker
-`SCTNTracker` and its `SCTNParams`, training (`train`: SCTN as an SNN, `train_twin`: its ANN twin, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
-`save_checkpoint`), and NIR export (`export_nir`, `sctn_graph`: docs/nir.md).
+`SCTNTracker` and its `SCTNParams`, training (`train`: SCTN as an SNN, `train_twin`: its ANN twin,
+`TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`, `save_checkpoint`), and NIR export
+(`export_nir`, `sctn_graph`: docs/nir.md).
 """
 
 from dvsot.lazy import lazy_attributes

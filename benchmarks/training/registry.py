@@ -1,7 +1,8 @@
 """The training registry: model name -> its trainer, its config type, its defaults and the settings only it has.
 
 A new model registers itself here (or from its own module, with `register_trainer`); `dvsot train --model` and
-`benchmarks.train_model` read nothing else. Functions and types are named as "module:attribute" and imported
+`benchmarks.train_model` read nothing else. SCTN-like models (a `network` type) share the layer settings
+(channels, fc, tail_steps, bias, no_background_neuron), checked here. Functions and types are named as "module:attribute" and imported
 when a run uses them, so reading the registry (the command's --help) imports no torch.
 """
 
@@ -9,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 from dvsot.errors import UserError, label
 
@@ -27,16 +28,19 @@ def resolve(name: str) -> Any:
 
 @dataclass(frozen=True)
 class Trainer:
-    """One trainable model: `train` (files, cfg, progress, val_files=, val_score=) -> (model, history); `config`
-    the settings' type; `configure` (settings, labels) -> config; `tracker` (model, seed) -> a benchmark tracker
-    for the validation sequences' ARscore; `settings` the optional settings only this model has, filled from
-    `defaults` when not given; `rescue` (setting, values): what else to try when a trained network is silent."""
+    """One trainable model: `train` (files, cfg, progress, val_files=, val_score=) -> (model, history); `config` its
+    settings' type; `network` the type of config.network made from the layer settings (SCTN's and its twin's
+    networks; None: the config's own); `tracker` (model, seed) -> a benchmark tracker for the validation sequences'
+    ARscore; `settings` the optional settings only this model has (those in `network_settings` go to its network),
+    filled from `defaults` when not given; `rescue` (setting, values): what else to try when a trained network
+    is silent."""
 
     train: str
     config: str
-    configure: Callable[[dict, Mapping[str, str] | None], Any]
     tracker: str
+    network: str | None = None
     settings: tuple[str, ...] = ()
+    network_settings: tuple[str, ...] = ()
     defaults: Mapping[str, Any] = field(default_factory=dict)
     rescue: tuple[str, str] | None = None
 
@@ -69,7 +73,7 @@ def model_settings(model: str, given: Mapping[str, Any], labels: Mapping[str, st
     """The settings of `model` from those given (None = not given), its defaults filling the rest of its own;
     UserError naming a setting the model lacks."""
     entry = trainer(model, labels)
-    out = {k: v for k, v in entry.defaults.items()}
+    out = dict(entry.defaults)
     for name, value in given.items():
         if value is None:
             continue
@@ -91,8 +95,8 @@ def _network(settings: dict, labels: Mapping[str, str] | None) -> dict:
     problem = range_problem(label("tail_steps", labels), tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")
     if problem:
         raise UserError(problem)
-    net = {"tail_steps": tail, "bias": settings.pop("bias"),
-           "background_neuron": not settings.pop("no_background_neuron")}
+    net = {"tail_steps": tail, "bias": settings.pop("bias", False),
+           "background_neuron": not settings.pop("no_background_neuron", False)}
     for name in ("channels", "fc"):
         sizes = settings.pop(name, None)
         if sizes is not None:
@@ -103,30 +107,15 @@ def _network(settings: dict, labels: Mapping[str, str] | None) -> dict:
     return net
 
 
-def _sctn_config(settings: dict, labels: Mapping[str, str] | None):
-    """SCTN's TrainConfig from its settings."""
-    from sctn.network import NetworkConfig
-    from sctn.training.snn import TrainConfig
-
-    network = NetworkConfig(**_network(settings, labels))
-    return TrainConfig(**settings, network=network)
-
-
-def _twin_config(settings: dict, labels: Mapping[str, str] | None):
-    """The ANN twin's TrainConfig (SCTN's, with a TwinConfig network) from its settings."""
-    from sctn.ann import TwinConfig
-    from sctn.training.snn import TrainConfig
-
-    twin_input = settings.pop("input")
-    network = TwinConfig(**_network(settings, labels), input=twin_input)
-    return TrainConfig(**settings, network=network)
-
-
-def _siamfc_config(settings: dict, labels: Mapping[str, str] | None):
-    """SiamFC's SiamFCTrainConfig from its settings."""
-    from benchmarks.trackers.siamfc.train import SiamFCTrainConfig
-
-    return SiamFCTrainConfig(**settings)
+def configure(model: str, settings: dict, labels: Mapping[str, str] | None = None):
+    """The config of `model` from its full settings (model_settings'); its network's from the layer settings."""
+    entry = trainer(model, labels)
+    settings = dict(settings)
+    if entry.network is None:
+        return resolve(entry.config)(**settings)
+    net = _network(settings, labels)
+    net.update({k: settings.pop(k) for k in entry.network_settings if k in settings})
+    return resolve(entry.config)(**settings, network=resolve(entry.network)(**net))
 
 
 _SCTN_LIKE = ("loss", "channels", "fc", "squared_error", "background_term", "no_background_neuron", "bias",
@@ -135,16 +124,16 @@ _SCTN_LIKE_DEFAULTS = {"loss": "exp", "squared_error": False, "background_term":
                        "no_background_neuron": False}
 
 register_trainer("sctn", Trainer(
-    train="sctn.training.snn:train", config="sctn.training.snn:TrainConfig", configure=_sctn_config,
+    train="sctn.training.snn:train", config="sctn.training.snn:TrainConfig", network="sctn.network:NetworkConfig",
     tracker="benchmarks.training.run:sctn_tracker",
     settings=_SCTN_LIKE + ("ops_penalty", "calibrate", "tail_steps", "init", "fluctuation_xi"),
     defaults={**_SCTN_LIKE_DEFAULTS, "ops_penalty": 0.0, "calibrate": False, "tail_steps": 0},
     rescue=("init", "calibrate / fluctuation")))
 register_trainer("sctn_ann", Trainer(
-    train="sctn.ann:train_twin", config="sctn.training.snn:TrainConfig", configure=_twin_config,
-    tracker="benchmarks.training.run:sctn_tracker", settings=_SCTN_LIKE + ("input",),
+    train="sctn.ann:train_twin", config="sctn.training.snn:TrainConfig", network="sctn.ann:TwinConfig",
+    tracker="benchmarks.training.run:sctn_tracker", settings=_SCTN_LIKE + ("input",), network_settings=("input",),
     defaults={**_SCTN_LIKE_DEFAULTS, "input": "bins"}))
 register_trainer("siamfc", Trainer(
     train="benchmarks.trackers.siamfc.train:train_siamfc",
-    config="benchmarks.trackers.siamfc.train:SiamFCTrainConfig", configure=_siamfc_config,
+    config="benchmarks.trackers.siamfc.train:SiamFCTrainConfig",
     tracker="benchmarks.training.run:siamfc_tracker"))

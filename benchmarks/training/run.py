@@ -9,13 +9,12 @@ validation apart from training, and the checkpoint's path (no input overwritten,
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from dvsot.errors import RunError, UserError, label
 from dvsot.limits import MAX_THREADS, range_problem
 
-from benchmarks.training.registry import model_settings, resolve, trainer
+from benchmarks.training.registry import configure, model_settings, resolve, trainer
 
 DEFAULT_DATA = ("data/dvsot21",)
 
@@ -58,10 +57,9 @@ def training_config(model: str, settings: Mapping[str, Any], labels: Mapping[str
     """The config of `model` from settings (None = not given); UserError naming a setting it lacks or a bad value."""
     from sctn.training.loop import TrainConfigError
 
-    entry = trainer(model, labels)
     full = model_settings(model, settings, labels)
     try:
-        return entry.configure(full, labels)
+        return configure(model, full, labels)
     except TrainConfigError as exc:  # every field set here is the setting of the same name
         raise UserError(f"{label(exc.field, labels)} {exc.problem}") from None
 

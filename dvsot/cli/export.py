@@ -1,8 +1,8 @@
 """Write a dataset file's events to a file other event-camera tools read, with its box track beside it as CSV.
 
 The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 2, or EVT 3 with --evt 3),
-.dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds; a file with per-event labels adds an object column, and its object
-table goes to OUT.objects.csv as id,name,role), .txt (rpg/ESIM: first line "width
+.dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds; a file with per-event labels adds an object column,
+and its object table goes to OUT.objects.csv as id,name,role), .txt (rpg/ESIM: first line "width
 height", then "t x y p" with t in seconds). Timestamps are the recording's own clock (t + /t_offset).
 The boxes go to OUT.boxes.csv as t_s,x,y,w,h (nan = no target), which `dvsot import --boxes` reads.
 

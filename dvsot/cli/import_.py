@@ -42,7 +42,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="EVT version of a .raw file without one in its header (default "
                         f"{IMPORT_EVT_VERSION.removeprefix('evt')})")
     p.add_argument("--header", action="store_true",
-                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs no flag)")
+                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs "
+                        "no flag)")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
 

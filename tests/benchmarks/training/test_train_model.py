@@ -113,7 +113,7 @@ def test_a_model_registered_once_trains_from_python_and_from_the_command(data, t
                                    "train_loss": []}
 
     monkeypatch.setitem(registry.TRAINERS, "toy", registry.Trainer(
-        train=f"{__name__}:_toy", config="sctn.training.snn:TrainConfig", configure=registry.TRAINERS["sctn"].configure,
+        train=f"{__name__}:_toy", config="sctn.training.snn:TrainConfig", network="sctn.network:NetworkConfig",
         tracker="benchmarks.training.run:sctn_tracker", settings=("channels", "fc"),
         defaults={"bias": False, "no_background_neuron": False}))
     monkeypatch.setattr(f"{__name__}._toy", train_toy, raising=False)

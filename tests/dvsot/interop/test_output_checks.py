@@ -94,7 +94,8 @@ def test_import_refuses_a_segment_length_out_of_range(events, tmp_path, capsys):
     ev, boxes = events
     out = tmp_path / "o.h5"
     refused_both_ways(lambda: import_recording(ev, out, boxes=boxes, size=(32, 24), segment_us=0),
-                      ["import", str(ev), "--boxes", str(boxes), "--size", "32x24", "--segment-us", "0", "-o", str(out)],
+                      ["import", str(ev), "--boxes", str(boxes), "--size", "32x24", "--segment-us", "0",
+                       "-o", str(out)],
                       "segment_us", "--segment-us", tmp_path, capsys)
 
 
