@@ -6,7 +6,9 @@ Public names (each imported on first use): `run_benchmark` (`dvsot bench`: every
 metrics (`scores`, `pooled`, `ar_score`, `Scores`), `summarise` (results -> a typed `Summary` of `Cell`s,
 the tables' data; `summarise_ope` for one-pass runs), `write_report` (a run's tables,
 per-sequence files, pictures and manifest, written together), `energy_table` (the paper's Table 3) and
-`find_sequences` (the files to run on). Checkpoints load through `sctn.load_checkpoint`.
+`find_sequences` (the files to run on), and training: `train_model` (any registered model to a checkpoint),
+`train_siamfc`, and the training registry (`TRAINERS`, `register_trainer`, `Trainer`). Checkpoints load
+through `sctn.load_checkpoint`.
 """
 
 from dvsot.core.lazy import lazy_attributes
@@ -33,6 +35,11 @@ _API = {
     "write_report": "benchmarks.analysis.report",
     "find_sequences": "benchmarks.evaluation.runner",
     "energy_table": "benchmarks.analysis.energy_table",
+    "train_model": "benchmarks.training.run",
+    "train_siamfc": "benchmarks.trackers.siamfc.train",
+    "TRAINERS": "benchmarks.training.registry",
+    "register_trainer": "benchmarks.training.registry",
+    "Trainer": "benchmarks.training.registry",
 }
 __all__ = list(_API)
 __getattr__, __dir__ = lazy_attributes(__name__, _API)

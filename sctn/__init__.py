@@ -1,8 +1,9 @@
 """SCTN: the spiking convolutional tracking network (C-LIF neurons, STCA-style training, tracking, energy).
 
 Public names (each imported on first use): the model `SCTN` and its `NetworkConfig`, the tracker
-`SCTNTracker` and its `SCTNParams`, training (`train`, `TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`,
-`save_checkpoint`), and NIR export (`export_nir`, `sctn_graph`: docs/nir.md).
+`SCTNTracker` and its `SCTNParams`, training (`train`: SCTN as an SNN, `train_twin`: its ANN twin,
+`TrainConfig`, `finetune`) and checkpoints (`load_checkpoint`, `save_checkpoint`), and NIR export
+(`export_nir`, `sctn_graph`: docs/nir.md).
 """
 
 from dvsot.core.lazy import lazy_attributes
@@ -12,7 +13,8 @@ _API = {
     "NetworkConfig": "sctn.network",
     "SCTNTracker": "sctn.tracker",
     "SCTNParams": "sctn.params",
-    "train": "sctn.train",
+    "train": "sctn.training.snn",
+    "train_twin": "sctn.ann",
     "TrainConfig": "sctn.training.snn",
     "finetune": "sctn.finetune",
     "load_checkpoint": "sctn.checkpoint",

@@ -12,6 +12,7 @@ import warnings
 from dvsot import __version__
 from dvsot.runtime import interrupts
 from dvsot.core.errors import RunError, UserError
+from dvsot.cli.flags import flag_labels
 
 # name -> module; the module's docstring's first line is the help text.
 COMMANDS: dict[str, str] = {
@@ -50,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=doc[0] if doc else None, description=(module.__doc__ or None),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(_run=module.run, param_flags=flag_labels(p))  # library parameter -> this command's flag
     return parser
 
 

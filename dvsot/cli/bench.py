@@ -39,7 +39,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from benchmarks.bench.plan import DEFAULT_DATA, _options  # noqa: F401  (_options: this module's old name)
+from benchmarks.bench.plan import DEFAULT_DATA
 
 # run_benchmark's parameters as the flags that set them, for its messages (dvsot.core.errors.label)
 FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": "--jobs", "scheduler": "--scheduler",
@@ -57,8 +57,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
     p.add_argument("--out", default=None, help="directory for the tables (default runs/bench-<time>)")
     p.add_argument("--jobs", type=int, default=None, help="parallel processes (default: min(2, runs))")
-    p.add_argument("--scheduler", help="local:N (a Dask LocalCluster of N processes) or tcp://HOST:PORT: one task per "
-                                       "(tracker, sequence) run; the data files must be at the same paths on the workers")
+    p.add_argument("--scheduler", help="local:N (a Dask LocalCluster of N processes) or tcp://HOST:PORT: one task "
+                                       "per (tracker, sequence) run; the data files must be at the same paths on the "
+                                       "workers")
     p.add_argument("--tracker-module", action="append", default=[], metavar="MODULE",
                    help="import this module first, so that the trackers it registers can be named")
     p.add_argument("--max-segments", type=int, default=None,

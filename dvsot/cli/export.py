@@ -1,8 +1,8 @@
 """Write a dataset file's events to a file other event-camera tools read, with its box track beside it as CSV.
 
 The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 2, or EVT 3 with --evt 3),
-.dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds; a file with per-event labels adds an object column, and its object
-table goes to OUT.objects.csv as id,name,role), .txt (rpg/ESIM: first line "width
+.dat (Prophesee DAT 2), .csv (t,x,y,p with t in microseconds; a file with per-event labels adds an object column,
+and its object table goes to OUT.objects.csv as id,name,role), .txt (rpg/ESIM: first line "width
 height", then "t x y p" with t in seconds). Timestamps are the recording's own clock (t + /t_offset).
 The boxes go to OUT.boxes.csv as t_s,x,y,w,h (nan = no target), which `dvsot import --boxes` reads.
 
@@ -30,15 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export the events (and boxes); print what was written."""
-    from dvsot.interop.event_files import boxes_path, event_format, export_dataset, objects_path
-    from dvsot.runtime.outputs import output_file
+    from dvsot.interop.event_files import export_dataset
 
-    event_format(args.output, "-o")  # an unknown suffix fails before anything is read
-    output_file(args.output, "-o", [args.file])
-    if event_format(args.output, "-o") == "csv":  # written only when the file has labels
-        output_file(objects_path(args.output), "-o (its .objects.csv)", [args.file])
-    if not args.no_boxes:
-        output_file(boxes_path(args.output), "-o (its .boxes.csv)", [args.file])
-    for path in export_dataset(args.file, args.output, evt_version=f"evt{args.evt}", boxes=not args.no_boxes):
+    for path in export_dataset(args.file, args.output, evt_version=f"evt{args.evt}", boxes=not args.no_boxes,
+                               labels=args.param_flags):
         print(path)
     return 0

@@ -42,34 +42,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="EVT version of a .raw file without one in its header (default "
                         f"{IMPORT_EVT_VERSION.removeprefix('evt')})")
     p.add_argument("--header", action="store_true",
-                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs no flag)")
+                   help="the .csv/.txt file's first line is a header, not an event (dvsot's own 't,x,y,p' needs "
+                        "no flag)")
     p.add_argument("--interpolate", action="store_true",
                    help="boxes are a dense track: interpolate to segment ends instead of scoring annotations only")
-
-
-# dvsot.interop.recordings' settings as flags
-_LABELS = {"boxes": "--boxes", "box_times": "--box-times-us", "box_times_from_frames": "--box-times-from-frames",
-           "size": "--size", "segment_us": "--segment-us"}
 
 
 def run(args: argparse.Namespace) -> int:
     """Import the events and boxes; print a one-line summary."""
     from dvsot.dataset import Dataset
-    from dvsot.core.errors import UserError
     from dvsot.interop.event_files import parse_size
-    from dvsot.runtime.outputs import output_file
     from dvsot.interop.recordings import import_recording
-    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
 
-    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
-    if problem:
-        raise UserError(problem)
-    inputs = [x for x in (args.events, args.boxes, args.box_times_us, args.absent) if x]
-    output_file(args.output, "-o", inputs)
-    size = parse_size(args.size, "--size") if args.size else None
+    size = parse_size(args.size, args.param_flags["size"]) if args.size else None
     path = import_recording(args.events, args.output, boxes=args.boxes, box_times=args.box_times_us,
                             absent=args.absent, size=size, segment_us=args.segment_us,
-                            evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=_LABELS,
+                            evt_version=f"evt{args.evt}", interpolate=args.interpolate, labels=args.param_flags,
                             box_times_from_frames=args.box_times_from_frames, header=args.header)
     with Dataset(path) as ds:
         scored = int(ds.segment_scored().sum()) if ds.annotated else None

@@ -63,64 +63,18 @@ _STAGE_FLAGS = {
     "readout_limit_hz": (float, "events per second the readout passes (ideal: 0, unlimited; else >= 1)"),
     "readout_fifo_events": (int, "events waiting for the readout before new ones are dropped (0: none dropped)"),
 }
-# EventParams field -> the flag that sets it, so that a bad value is reported by its flag
-_PARAM_FLAGS = {"cp": "--cp", "cn": "--cn", "sigma_cp": "--sigma", "sigma_cn": "--sigma", "mismatch": "--mismatch",
-                "refractory_us": "--refractory-us", "log_eps": "--log-eps", "shot_noise_hz": "--shot-noise-hz",
-                "leak_hz": "--leak-hz", "preset": "--preset",
-                **{field: "--" + field.replace("_", "-") for field in _STAGE_FLAGS}}
-
-
-def _event_params(args: argparse.Namespace):
-    """The simulator parameters from the flags over the preset's; a bad value raises UserError naming its flag."""
-    from pydantic import ValidationError
-
-    from dvsot.core.errors import UserError
-    from dvsot.events.simulator import EventParams, param_problem
-
-    values = dict(preset=args.preset, cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
-                  mismatch=args.mismatch, refractory_us=args.refractory_us, log_eps=args.log_eps,
-                  shot_noise_hz=args.shot_noise_hz, leak_hz=args.leak_hz,
-                  **{field: getattr(args, field) for field in _STAGE_FLAGS})
-    values = {k: v for k, v in values.items() if v is not None}
-    try:
-        return EventParams(**values)
-    except ValidationError as exc:
-        raise UserError(param_problem(exc, _PARAM_FLAGS)) from None
-
-
-def _check_flags(args: argparse.Namespace) -> None:
-    """Range checks of the numeric flags EventParams does not cover."""
-    import math
-
-    from dvsot.core.errors import UserError
-    from dvsot.pipeline.simulate import MAX_FPS
-    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
-
-    if not 0 <= args.seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
-        raise UserError(f"--seed must be >= 0 (and below 2**63), got {args.seed}")
-    if args.segment_us < MIN_SEGMENT_US:
-        raise UserError(f"--segment-us must be at least {MIN_SEGMENT_US} (1 ms), got {args.segment_us}")
-    problem = range_problem("--segment-us", args.segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
-    if problem:
-        raise UserError(problem)
-    if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= MAX_FPS):
-        raise UserError(f"--fps must be positive and finite (at most {MAX_FPS:g}), got {args.fps}")
-
-
-_LABELS = {"fps": "--fps", "timestamps": "--timestamps", "output": "-o", "segment_us": "--segment-us",
-           "boxes": "--boxes"}  # how dvsot.pipeline.simulate's messages name them
-
-
 def run(args: argparse.Namespace) -> int:
     """Stream frames through the event simulator into a dataset file; print a summary."""
     import json
 
     from dvsot.pipeline.simulate import simulate_file
 
-    params = _event_params(args)
-    _check_flags(args)
+    params = dict(preset=args.preset, cp=args.cp, cn=args.cn, sigma_cp=args.sigma, sigma_cn=args.sigma,
+                  mismatch=args.mismatch, refractory_us=args.refractory_us, log_eps=args.log_eps,
+                  shot_noise_hz=args.shot_noise_hz, leak_hz=args.leak_hz,
+                  **{field: getattr(args, field) for field in _STAGE_FLAGS})
     summary = simulate_file(args.input, args.output, params, args.seed, fps=args.fps, timestamps=args.timestamps,
                             boxes=args.boxes, srgb=args.srgb, segment_us=args.segment_us, progress=not args.quiet,
-                            labels=_LABELS)
+                            labels=args.param_flags)
     print(json.dumps(summary) if args.quiet else "\n".join(f"{k:>18}: {v}" for k, v in summary.items()))
     return 0

@@ -11,11 +11,12 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
 from dvsot.core.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
-from dvsot.core.errors import UserError, exception_line
+from dvsot.core.errors import UserError, exception_line, label
 from dvsot.core.bounds import sensor_size_problem
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
@@ -306,23 +307,31 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
 
 
 def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
-                   evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True) -> list[Path]:
+                   evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True,
+                   labels: Mapping[str, str] | None = None) -> list[Path]:
     """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written.
 
     A CSV export of a file with per-event labels gets the object column and the object table in OUT.objects.csv
-    (id,name,role)."""
+    (id,name,role). Every output is checked before anything is read (UserError: an unknown suffix, a directory, an
+    output that is the dataset file); labels: how messages name out_path (a command's flag)."""
     from dvsot.dataset import Dataset
-    from dvsot.runtime.outputs import replacing, run_outputs
+    from dvsot.runtime.outputs import output_file, replacing, run_outputs
 
     out = Path(out_path)
-    event_format(out, "output")
+    flag = label("out_path", labels)
+    event_format(out, flag)  # an unknown suffix fails before anything is read
+    output_file(out, flag, [dataset_path])
+    if event_format(out, flag) == "csv":  # written only when the file has labels
+        output_file(objects_path(out), f"{flag} (its .objects.csv)", [dataset_path])
+    if boxes:
+        output_file(boxes_path(out), f"{flag} (its .boxes.csv)", [dataset_path])
     if evt_version not in EVT_VERSIONS:
         raise UserError(f"evt_version {evt_version!r}: expected one of {', '.join(EVT_VERSIONS)}")
     with Dataset(dataset_path) as ds:
         parts = list(ds.chunks())
         track = ds.boxes()
         width, height, offset = ds.width, ds.height, ds.t_offset_us
-        table = ds.objects if event_format(out, "output") == "csv" else None
+        table = ds.objects if event_format(out, flag) == "csv" else None
     t = np.concatenate([b.t for b in parts]) + offset if parts else np.empty(0, np.int64)
     if len(t) and t[0] < 0:
         raise UserError(f"{dataset_path}: /t_offset {offset} makes timestamps negative, which event files cannot hold")

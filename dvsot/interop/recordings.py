@@ -175,11 +175,18 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
     """Write an events file (and its boxes) into a dataset file; every input is checked before anything is written.
 
     box_times_from_frames: the annotation times are the events file's AEDAT4 frame timestamps, one per box.
-    labels: how messages name the settings boxes, box_times, box_times_from_frames, size and segment_us (a
+    labels: how messages name the settings out, boxes, box_times, box_times_from_frames, size and segment_us (a
     command's flags); header: the CSV or TXT events file's first line is a header line, not an event."""
     from dvsot import __version__
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
+    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
+    from dvsot.runtime.outputs import output_file
+
+    problem = range_problem(label("segment_us", labels), segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
+    output_file(out, label("out", labels), [x for x in (events, boxes, box_times, absent) if x])
 
     if box_times and box_times_from_frames:
         raise UserError(f"{box_times}: give annotation times either as a file ({label('box_times', labels)}) or "

@@ -45,15 +45,50 @@ def frame_times(count: int, fps: float | None = None, timestamps: str | os.PathL
     return t_us
 
 
-def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: EventParams | None = None,
-                  seed: int = 0, *, fps: float | None = None, timestamps: str | os.PathLike | None = None,
+def event_params(settings: EventParams | Mapping[str, object] | None,
+                 labels: Mapping[str, str] | None = None) -> EventParams:
+    """The simulator's parameters: given, or EventParams' fields (None = the preset's value) over the preset's;
+    a bad value raises UserError naming its field (or its label)."""
+    from pydantic import ValidationError
+
+    from dvsot.events.simulator import param_problem
+
+    if settings is None or isinstance(settings, EventParams):
+        return settings if settings is not None else EventParams()
+    try:
+        return EventParams(**{k: v for k, v in settings.items() if v is not None})
+    except ValidationError as exc:
+        raise UserError(param_problem(exc, dict(labels or {}))) from None
+
+
+def check_settings(seed: int, segment_us: int, fps: float | None, labels: Mapping[str, str] | None = None) -> None:
+    """UserError naming the setting if the seed, the segment length (us) or the frame rate (Hz) is out of range."""
+    import math
+
+    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
+
+    if not 0 <= seed < 2**63:  # numpy's seeds are non-negative; the file stores the seed as int64
+        raise UserError(f"{label('seed', labels)} must be >= 0 (and below 2**63), got {seed}")
+    if segment_us < MIN_SEGMENT_US:
+        raise UserError(f"{label('segment_us', labels)} must be at least {MIN_SEGMENT_US} (1 ms), got {segment_us}")
+    problem = range_problem(label("segment_us", labels), segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")
+    if problem:
+        raise UserError(problem)
+    if fps is not None and not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise UserError(f"{label('fps', labels)} must be positive and finite (at most {MAX_FPS:g}), got {fps}")
+
+
+def simulate_file(frames: str | os.PathLike, output: str | os.PathLike,
+                  params: EventParams | Mapping[str, object] | None = None, seed: int = 0, *,
+                  fps: float | None = None, timestamps: str | os.PathLike | None = None,
                   boxes: str | os.PathLike | None = None, srgb: bool = False, segment_us: int = SEGMENT_US,
                   progress: bool = False, labels: Mapping[str, str] | None = None) -> dict:
     """Stream frames (directory, video or .npy) through the event simulator into a dataset file; a summary.
 
-    Frame times: `timestamps` (a file of seconds, one per line), else `fps`, else a video's own rate;
-    they are rebased to the first frame. `boxes`: optional CSV t_s,x,y,w,h on the same clock. Bad input
-    raises UserError before the file is begun; the file appears only when complete.
+    `params`: EventParams, or its fields (None = the preset's value) over `preset`'s. Frame times: `timestamps`
+    (a file of seconds, one per line), else `fps`, else a video's own rate; they are rebased to the first frame.
+    `boxes`: optional CSV t_s,x,y,w,h on the same clock. Bad input raises UserError before the file is begun;
+    the file appears only when complete.
     """
     from dvsot import __version__
     from dvsot.events import EventSimulator
@@ -62,7 +97,8 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike, params: 
     from dvsot.pipeline.sequence import write_sequence
     from dvsot.core.bounds import MAX_SENSOR_PIXELS
 
-    params = params if params is not None else EventParams()
+    params = event_params(params, labels)
+    check_settings(seed, segment_us, fps, labels)
     inputs = [Path(p) for p in (frames, timestamps, boxes) if p]
     if inputs[0].is_dir():  # a frames directory: none of its files may be overwritten either
         inputs += sorted(inputs[0].iterdir())

@@ -26,13 +26,14 @@ SCTN_LAYERS = (
     ("sparse", ("sparse",)),  # per-candidate evaluation over the events that exist
     ("training", ("finetune", "training")),
     ("checkpoint", ("checkpoint",)),  # a stored model and the training settings it was made with
-    ("models", ("tracker", "ann", "nir_export", "train", "")),  # what users load and run; the package's face
+    ("models", ("tracker", "ann", "nir_export", "")),  # what users load and run; the package's face
 )
 # benchmarks' phases, lowest first: (phase, the subpackages or modules directly under benchmarks/ in it)
 BENCHMARKS_LAYERS = (
     ("trackers", ("trackers",)),  # the registry, every tracker and its inputs (ATSLTD frames)
     ("evaluation", ("evaluation",)),  # protocol, runner, metrics, attributes: results and scores
     ("analysis", ("analysis",)),  # scores as tables, files and pictures
+    ("training", ("training",)),  # every model's training behind one registry, tracking on validation
     ("bench", ("bench",)),  # a checked run from end to end (dvsot bench): evaluation's runs, analysis's tables
     ("experiments", ("experiments", "perf")),  # studies and performance scripts built on whole runs
     ("face", ("",)),  # the package's public names

@@ -82,18 +82,21 @@ def _has_module(dotted: str) -> bool:
     return any(m.name == name for m in pkgutil.iter_modules(importlib.import_module(parent).__path__))
 
 
-def test_names_shared_with_submodules_are_the_callable_modules():
+def test_training_is_plain_functions_from_their_modules():
+    import benchmarks
     import sctn
-    import sctn.train
+    from benchmarks.trackers.siamfc.train import train_siamfc
+    from sctn.ann import train_twin
+    from sctn.training.snn import train
 
-    assert sctn.train is sys.modules["sctn.train"] and callable(sctn.train)
-    assert sctn.train.TrainConfig is sctn.TrainConfig
+    assert sctn.train is train and sctn.train_twin is train_twin and benchmarks.train_siamfc is train_siamfc
+    assert "sctn.train" not in sys.modules and not (Path(sctn.__file__).parent / "train.py").exists()
 
 
-def test_a_call_through_the_module_meets_a_patch(monkeypatch):
+def test_a_call_through_the_package_meets_a_patch(monkeypatch):
     import sctn
 
-    monkeypatch.setattr("sctn.train.train", lambda *a, **k: ("patched", a, k))
+    monkeypatch.setattr("sctn.training.snn.train", lambda *a, **k: ("patched", a, k))
     assert sctn.train(["f.h5"], cfg=None) == ("patched", (["f.h5"],), {"cfg": None})
 
 

@@ -246,7 +246,7 @@ def test_a_tracker_crash_is_reported_and_exits_1(tmp_path, capsys):
 
 
 def test_option_values_read_as_yaml():
-    from dvsot.cli.bench import _options
+    from benchmarks.bench.plan import _options
 
     opts = _options(["sctn.fast=False", "sctn.trans=1e-1", "rct.cluster_size=0.05", "sctn.crop=nearest"], ["sctn", "rct"])
     assert opts == {"sctn": {"fast": False, "trans": 0.1, "crop": "nearest"}, "rct": {"cluster_size": 0.05}}

@@ -138,7 +138,7 @@ def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path,
         return model, {"val": [final], "silent": final["vmax_max"] <= 0, "steps": 0, "minutes": 0.0,
                        "train_segments": 2, "val_segments": 2}
 
-    monkeypatch.setattr("dvsot.cli.train._trainer", lambda model: dead)
+    monkeypatch.setattr("sctn.training.snn.train", dead)  # the registry looks its trainer up at each run
     out = tmp_path / "m.pt"
     out.write_bytes(b"a good checkpoint")
     assert main(["train", "--data", str(data), "-o", str(out), *TINY]) == 1

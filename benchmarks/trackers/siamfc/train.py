@@ -138,8 +138,9 @@ def evaluate(model: SiamFC, batch: tuple[torch.Tensor, ...]) -> dict:
     return {"loss": loss, "centre_error_px": float(err.mean())}
 
 
-def train(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True, val_files: list[Path] | None = None,
-          val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[SiamFC, dict]:
+def train_siamfc(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = True,
+                 val_files: list[Path] | None = None,
+                 val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[SiamFC, dict]:
     """Train a new SiamFC on the given dataset files; returns the model and a history of metrics.
 
     Validation (every cfg.val_every steps and at the end): cfg.val_segments search segments spread over

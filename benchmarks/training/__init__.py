@@ -1,0 +1,1 @@
+"""Training every model through one registry: the registry (registry) and a whole run to a checkpoint (run)."""
