@@ -192,7 +192,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     if problem:
         raise UserError(problem)
     if scheduler:
-        from dvsot.pipeline.scene_runner import parse_scheduler
+        from dvsot.runtime.dask_tasks import parse_scheduler
 
         parse_scheduler(scheduler, "--scheduler")
     if max_segments is not None and max_segments < 1:
