@@ -167,6 +167,13 @@ def generate_variants(template: str | Path, n: int, out_dir: str | Path, schedul
                       labels: Mapping[str, str] | None = None) -> Manifest:
     """Draw n variants of a scene template and render them into <out_dir>/<name>.h5 (here, or on `scheduler`:
     local:N or tcp://HOST:PORT); the run's manifest, also written to <out_dir>/manifest.json."""
+    from dvsot.limits import MAX_VARIANTS, range_problem
+
+    if isinstance(n, bool) or not isinstance(n, int):
+        raise UserError(f"n (variants to draw) must be an integer, got {n!r}")
+    problem = range_problem("n (variants to draw)", n, 1, MAX_VARIANTS)
+    if problem:
+        raise UserError(problem)
     return generate_scenes([str(template)], None, str(out_dir), overrides, preview, scheduler, None, n, retries,
                            resume, True, None, report, labels)
 

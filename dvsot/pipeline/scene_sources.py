@@ -60,7 +60,7 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
                   progress: bool = False) -> tuple[list[SceneTask], list[Path]]:
     """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5."""
     if count < 1:
-        raise UserError(f"{label('variants', labels)} (variants to draw) must be >= 1, got {count}")
+        raise UserError(f"count (variants to draw) must be >= 1, got {count}")
     tpl = read_template(template)
     out = Path(out_dir).resolve()
     overrides = dict(overrides or {})

@@ -63,3 +63,37 @@ def test_jobs_2_and_scheduler_local_2_give_the_same_files_and_manifest(tmp_path,
     assert [r["status"] for r in manifest(jobs)] == ["done", "done"]
     assert {p.name for p in jobs.iterdir()} == {p.name for p in scheduler.iterdir()} == {"a.h5", "b.h5",
                                                                                           "manifest.json"}
+
+
+TEMPLATE = SCENE.format(name="tiny", shape="{choice: [cube, sphere]}").replace("size_m: 1.5",
+                                                                                "size_m: {uniform: [1.2, 1.8]}")
+
+
+def test_generate_variants_draws_and_renders_in_one_call(tmp_path):
+    import dvsot
+    from dvsot.scene.templates import draw_variants, read_template
+
+    tpl = tmp_path / "tiny.yaml"
+    tpl.write_text(TEMPLATE)
+    out = tmp_path / "out"
+    m = dvsot.generate_variants(tpl, 2, out)  # here, in this process: no scheduler
+    assert m.path == out / "manifest.json" and not m.failed()
+    drawn = draw_variants(read_template(tpl), 2)
+    assert [(r["name"], r["variant"], r["seed"], r["status"]) for r in m.records] == [
+        (v.name, v.index, v.seed, "done") for v in drawn]
+    assert json.loads(m.path.read_text())["scenes"] == m.records
+    for v in drawn:
+        with Dataset(out / f"{v.name}.h5") as ds:
+            assert ds.num_events > 0 and ds.attrs["scene_yaml"] == v.text("tiny.yaml")
+
+
+@pytest.mark.parametrize("n, words", [(0, "n (variants to draw) must be >= 1, got 0"),
+                                      (2.5, "n (variants to draw) must be an integer, got 2.5")])
+def test_generate_variants_names_a_bad_count_before_any_work(tmp_path, n, words):
+    import dvsot
+
+    tpl = tmp_path / "tiny.yaml"
+    tpl.write_text(TEMPLATE)
+    with pytest.raises(dvsot.UserError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        dvsot.generate_variants(tpl, n, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
