@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(problem)
     if args.dry_run:  # each drawn scene checked, its view included, and printed
         tasks, _ = many_tasks(paths, args.out_dir or "out", args.variants, _overrides(args), args.preview, _warn,
-                              _LABELS)
+                              _LABELS, output=args.output)
         print("".join(f"# ---- {t.name}: {t.output}\n{t.text}\n" for t in tasks), end="")
         return 0
     scenes = args.variants or len(paths)

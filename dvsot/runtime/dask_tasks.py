@@ -5,6 +5,9 @@ One loop serves every command that runs on a cluster (`dvsot generate`, `dvsot b
 (the task raised, returned a failure, or its worker died) as one line and resubmits it, on a worker not yet
 tried while there is one, up to `retries` times, while the other tasks go on.
 
+`TaskRunner(None)` runs the same calls in this process, in order, under the same failure and retry rules
+(`run_here`), so a command has one path whether or not it has a cluster.
+
 `local:N` runs N worker processes of this process (dvsot.runtime.local_workers: they die with it and stop quietly);
 `generate --jobs N` and `bench --jobs N` are `local:N`. A run whose tasks write files holds a lease in its
 output directory (dvsot.runtime.staging.RunLease): when the run stops here (an interrupt, an error), the lease is
@@ -286,7 +289,8 @@ def run_here(fn: Callable, calls: list[tuple], retries: int = 0,
 
     A failed call (it raised an Exception, or failure_of says its result is one) is tried again here until it
     has failed retries + 1 times; an interrupt is not a failure and ends the run. stop_on_failure: the first
-    failure is raised (the call's own UserError or RunError, else a RunError of one line).
+    failure is raised (the call's own UserError or RunError, else a RunError of one line). run_tasks' `where` and
+    `lease_dir` do not apply: this process's own interrupt stops its writes.
     """
     results: list = []
     for k, call in enumerate(calls):
