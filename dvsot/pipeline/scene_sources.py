@@ -62,7 +62,7 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
     if count < 1:
         raise UserError(f"count (variants to draw) must be >= 1, got {count}")
     tpl = read_template(template)
-    out = Path(out_dir).resolve()
+    out = Path(out_dir).absolute()  # not resolved: a bad out_dir (a link loop) is named by check_outputs
     overrides = dict(overrides or {})
     tasks, inputs = [], [Path(template)]
     for v in draw_variants(tpl, count):
@@ -86,7 +86,7 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
     if output and len(paths) > 1:
         raise UserError(f"{label('output', labels)} names one output file; use {label('out_dir', labels)} "
                         "for several scenes")
-    out = Path(out_dir).resolve()
+    out = Path(out_dir).absolute()  # not resolved: a bad out_dir (a link loop) is named by check_outputs
     overrides = dict(overrides or {})
     configs = [load_plain_scene(p, dict(overrides)) for p in paths]  # all bad input before anything else
     tasks, inputs = [], []

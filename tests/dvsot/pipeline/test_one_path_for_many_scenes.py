@@ -97,3 +97,20 @@ def test_generate_variants_names_a_bad_count_before_any_work(tmp_path, n, words)
     with pytest.raises(dvsot.UserError, match=words.replace("(", r"\(").replace(")", r"\)")):
         dvsot.generate_variants(tpl, n, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_several_scenes_here_keep_their_frames_each_in_its_own_directory(tmp_path, capsys):
+    scenes = []
+    for name, shape in (("a", "cube"), ("b", "sphere")):
+        p = tmp_path / f"{name}.yaml"
+        p.write_text(SCENE.format(name=name, shape=shape))
+        scenes.append(str(p))
+    out, keep = tmp_path / "out", tmp_path / "frames"
+    assert main(["generate", *scenes, "--out-dir", str(out), "--keep-frames", str(keep), "--quiet"]) == 0
+    recs = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["name"], r["status"]) for r in recs] == [("a", "done"), ("b", "done")]
+    assert [r["status"] for r in json.loads((out / "manifest.json").read_text())["scenes"]] == ["done", "done"]
+    for name in ("a", "b"):
+        with Dataset(out / f"{name}.h5") as ds:
+            assert ds.num_events > 0
+        assert len(list((keep / name).glob("*.npy"))) >= 8  # min rate 200 Hz over 40 ms
