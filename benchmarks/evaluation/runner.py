@@ -87,7 +87,7 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     if protocol not in PROTOCOLS:
         raise UserError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
     if scheduler:
-        from dvsot.pipeline.scene_runner import parse_scheduler
+        from dvsot.runtime.dask_tasks import parse_scheduler
 
         parse_scheduler(scheduler)
     for m in tracker_modules:

@@ -203,24 +203,13 @@ def _append(log: Path, record: dict) -> None:
         fh.write(json.dumps(record) + "\n")
 
 
-def _run_local(phases: list[list[tuple]], args: tuple, jobs: int, on_result) -> list:
-    """--jobs: the phases in a pool of processes (a failing run stops the ablation, as it always has)."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    with ProcessPoolExecutor(jobs) as pool:
-        for phase in phases:
-            futures = [pool.submit(run_one, row, s, *args) for row, s in phase]
-            for fut in as_completed(futures):
-                on_result(fut.result())
-    return []
-
-
-def _run_dask(phases: list[list[tuple]], args: tuple, scheduler: str, retries: int, on_result, on_failure) -> list:
-    """--scheduler: each phase's (row, seed) runs as Dask tasks on one cluster; the (row, seed)s that finally failed."""
-    from dvsot.runtime.dask_tasks import Cluster, Failure, run_tasks
+def _run(phases: list[list[tuple]], args: tuple, scheduler: str | None, retries: int, on_result, on_failure) -> list:
+    """Each phase's (row, seed) runs as tasks (dvsot.runtime.dask_tasks.TaskRunner: here when scheduler is None, else
+    on one cluster for every phase), a failed run retried; the (row, seed)s that finally failed."""
+    from dvsot.runtime.dask_tasks import Failure, TaskRunner
 
     failed: list[tuple] = []
-    with Cluster(scheduler) as client:
+    with TaskRunner(scheduler) as runner:
         for phase in phases:
             runnable = []
             for row, s in phase:  # a tracker-only row needs its network's checkpoint from the first phase
@@ -238,9 +227,9 @@ def _run_dask(phases: list[list[tuple]], args: tuple, scheduler: str, retries: i
                 if final:
                     failed.append(runnable[k])
 
-            run_tasks(client, run_one, [(row, s, *args) for row, s in runnable], retries,
-                      on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run",
-                      lease_dir=args[3])  # --out: the checkpoints
+            runner.run(run_one, [(row, s, *args) for row, s in runnable], retries,
+                       on_result=lambda k, r: on_result(r), on_failure=failed_attempt, name="ablation-run",
+                       lease_dir=args[3])  # --out: the checkpoints
     return failed
 
 
@@ -269,16 +258,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--candidates", type=int, default=TRACK.n)
     p.add_argument("--max-segments", type=int, default=None, help="track at most this many segments per sequence")
     p.add_argument("--seed-major", action="store_true", help="run seed 0 of every row, then seed 1, ...")
-    p.add_argument("--jobs", type=int, default=1, help="(row, seed) runs in parallel processes")
+    p.add_argument("--jobs", type=int, default=1, help="(row, seed) runs in parallel processes: local:N (1: here)")
     p.add_argument("--scheduler", help="run each (row, seed) as a Dask task: local:N (a LocalCluster of N "
                    "single-threaded workers) or tcp://HOST:PORT (a running cluster)")
-    p.add_argument("--retries", type=int, default=1, help="with --scheduler: resubmit a failed run this many times")
+    p.add_argument("--retries", type=int, default=1, help="resubmit a failed run this many times")
     p.add_argument("--out", required=True, help="directory for checkpoints and runs.jsonl (reused by a rerun)")
     a = p.parse_args(argv)
     if a.scheduler:
         parse_scheduler(a.scheduler)  # a bad spec: one line, before anything runs
     if a.retries < 0:
         p.error(f"--retries must be >= 0, got {a.retries}")
+    if a.jobs < 1:
+        p.error(f"--jobs must be >= 1, got {a.jobs}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     budget = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
@@ -316,10 +307,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"ablation: {row} seed {seed} failed{f' on {failure.worker}' if failure.worker else ''} "
                       f"({failure.error}){'' if final else '; retrying'}", file=sys.stderr, flush=True)
 
-            if a.scheduler:
-                failed = _run_dask(phases, args, a.scheduler, a.retries, on_result, on_failure)
-            else:
-                failed = _run_local(phases, args, a.jobs, on_result)
+            scheduler = a.scheduler or (f"local:{a.jobs}" if a.jobs > 1 else None)
+            failed = _run(phases, args, scheduler, a.retries, on_result, on_failure)
     runs = [r for r in done if r["row"] in a.rows and r["seed"] in seeds]
     print(format_table(summarise(runs)))
     if failed:

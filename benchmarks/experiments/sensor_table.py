@@ -88,7 +88,7 @@ def preset_files(presets: Sequence[str], sequences: Sequence[str]) -> dict[str, 
 
 
 def kept_frame_dirs(sequences: dict[str, Path], frames: str | Path) -> dict[str, Path]:
-    """{sequence: FRAMES/<name>} (dvsot.pipeline.scene_files.keep_dirs' layout for several scenes), each holding one
+    """{sequence: FRAMES/<name>} (dvsot generate --keep-frames' layout for several scenes), each holding one
     frame per render sample; UserError naming the sequences without frames, or the first whose count is off."""
     from benchmarks.experiments.robustness import kept_frames
     from dvsot.core.errors import UserError

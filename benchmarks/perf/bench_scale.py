@@ -9,7 +9,7 @@ LocalCluster of single-threaded worker processes is started (start_s) and warmed
 import, Cycles' first render, the event kernels; `dvsot generate --scheduler` pays this once per worker before
 its first submit, as does a real cluster). Neither counts in the throughput. Then --repeats rounds: in each round every
 (worker count, thread mode) gets the same variants, submitted through the cluster's tcp:// address by
-dvsot.pipeline.many_scenes.generate_many (the code path of `dvsot generate --scheduler tcp://...`) into a new directory;
+dvsot.pipeline.many_scenes.generate_variants (the code path of `dvsot generate --scheduler tcp://...`) into a new directory;
 rounds interleave the configurations, so a change of the machine's load hits all of them alike.
 - run_s: first submit to last result; median and min over rounds; sequences/h = variants / median run_s.
 - thread modes: `shared` (the default of --scheduler: render.threads = the machine's cores / its workers, so
@@ -24,7 +24,7 @@ rounds interleave the configurations, so a change of the machine's load hits all
 - ceiling: 2 copies of a CPU-bound Python loop at once against 1 alone (per round): the best any 2-process
   speed-up can be on this machine at that moment (below 2 when other jobs hold the cores).
 - render_ceiling: the same for the task itself, without Dask: 2 plain processes each generating the
-  template's first variant (render.threads 1, each bound to its own CPU as dvsot.pipeline.scene_runner binds workers) at
+  template's first variant (render.threads 1, each bound to its own CPU as dvsot.runtime.cpu_shares binds workers) at
   once against 1 alone (per round). Cycles shares caches and memory bandwidth, which a Python loop does
   not: this is the 2-worker speed-up the machine allows for these scenes; one.2 against it is what the
   engine loses.
@@ -70,11 +70,10 @@ TINY = TEMPLATE.format(width=80, height=60, duration=0.05)  # tiny variants
 
 def run_batch(template: Path, variants: int, address: str, mode: str, out: Path) -> dict:
     """One round of one configuration: the variants submitted to a running cluster; its timing and task figures."""
-    from dvsot.pipeline.many_scenes import generate_many, variant_tasks
+    from dvsot.pipeline.many_scenes import generate_variants
 
     overrides = {"render.threads": 1} if mode == "one" else {}
-    tasks, inputs = variant_tasks(template, variants, out, overrides)
-    m = generate_many(tasks, inputs, out, address, retries=0)
+    m = generate_variants(template, variants, out, address, overrides, retries=0)
     done = [r["attempts"][-1] for r in m.records if r["status"] == "done"]
     run_s = m.timing["run_s"]
     task_s = [a["task_s"] for a in done]
@@ -104,7 +103,7 @@ def _render(template_text: str, repeats: int, cpus: set[int] | None = None) -> f
     """Seconds this process takes to generate the template's first variant `repeats` times (render.threads 1),
     after one untimed run (bpy's import and Cycles' first render); bound to `cpus` if given, else to every CPU."""
     from dvsot.scene import parse_scene
-    from dvsot.pipeline.scene_runner import pin_process
+    from dvsot.runtime.cpu_shares import pin_process
 
     pin_process(cpus if cpus is not None else os.sched_getaffinity(os.getppid()))
     from dvsot.pipeline.generate import generate
@@ -124,11 +123,11 @@ def _render(template_text: str, repeats: int, cpus: set[int] | None = None) -> f
 
 def render_ceiling(pool: ProcessPoolExecutor, template_text: str, repeats: int = 2) -> float:
     """Throughput of 2 processes generating the first variant at once over 1 alone (2.0 if they never meet)."""
-    from dvsot.pipeline.scene_runner import cpu_share
+    from dvsot.runtime.cpu_shares import cpu_share
 
     alone = pool.submit(_render, template_text, repeats).result()
     cpus = sorted(os.sched_getaffinity(0))
-    # each bound to its own share, as dvsot.pipeline.scene_runner binds 2 workers on one machine
+    # each bound to its own share, as dvsot.runtime.cpu_shares binds 2 workers on one machine
     both = [f.result() for f in [pool.submit(_render, template_text, repeats, cpu_share(cpus, k, 2))
                                  for k in range(2)]]
     return round(2 * alone / max(both), 2)
@@ -168,7 +167,8 @@ def measure(variants: int, workers: list[int], modes: list[str], repeats: int, s
             duration: float, tmp: Path) -> dict:
     """Start and warm one LocalCluster per worker count, then run the interleaved rounds; every figure."""
     from dvsot.runtime.dask_tasks import Cluster
-    from dvsot.pipeline.scene_runner import warm_workers
+    from dvsot.pipeline.scene_task import warm_up_scene
+    from dvsot.runtime.warm_up import warm_workers
 
     template = tmp / "tiny.yaml"
     template.write_text(TEMPLATE.format(width=size[0], height=size[1], duration=duration))
@@ -183,7 +183,7 @@ def measure(variants: int, workers: list[int], modes: list[str], repeats: int, s
                 client = stack.enter_context(Cluster(f"local:{w}"))
                 start_s = time.perf_counter() - t0
                 t0 = time.perf_counter()
-                warm = warm_workers(client, 1 if mode == "one" else 0)
+                warm = warm_workers(client, warm_up_scene, 1 if mode == "one" else 0)
                 result["clusters"][f"{w} {mode}"] = {
                     "start_s": round(start_s, 2), "warm_s": round(time.perf_counter() - t0, 2),
                     "warm_errors": [x["error"] for x in warm if "error" in x]}

@@ -22,13 +22,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preview", action="store_true", help="also write <output>.gif: event frames with the box")
     p.add_argument("--duration", type=float, help="override duration_s (seconds), for quick runs")
     p.add_argument("--resolution", help="override the sensor size, WxH (the lens's field of view is kept)")
-    p.add_argument("--jobs", type=int, default=1, help="scenes rendered in parallel processes (default 1)")
+    p.add_argument("--jobs", type=int, default=1, help="scenes rendered in parallel processes: local:N (default 1)")
     p.add_argument("--keep-frames", help="directory to keep rendered luma frames (.npy) in")
     p.add_argument("--quiet", action="store_true", help="no progress bar; JSON summary")
-    many = p.add_argument_group("many scenes (a template's variants, a cluster; writes <out-dir>/manifest.json)")
+    many = p.add_argument_group("many scenes (several scene files, a template's variants, a cluster; writes "
+                                "<out-dir>/manifest.json)")
     many.add_argument("--variants", type=int, help="draw N scenes from one template file (its distributions)")
     many.add_argument("--dry-run", action="store_true", help="print the drawn scenes (checked), render nothing")
-    many.add_argument("--scheduler", help="local:N (a LocalCluster of N worker processes) or tcp://HOST:PORT")
+    many.add_argument("--scheduler", help="local:N (N worker processes here) or tcp://HOST:PORT")
     many.add_argument("--retries", type=int, default=1, help="times a failed scene is resubmitted (default 1)")
     many.add_argument("--resume", action="store_true", help="skip scenes whose output exists, verifies and holds them")
 
@@ -62,11 +63,15 @@ def _warn(text: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Validate every scene first (nothing is rendered if one is bad), then render them."""
+    """Validate every scene first (nothing is rendered if one is bad), then render them; 1 if a scene failed."""
     import glob
     import json
+    import sys
 
+    from dvsot.core import bounds
     from dvsot.core.errors import UserError
+    from dvsot.pipeline.manifest import summary_line
+    from dvsot.pipeline.many_scenes import generate_scenes, many_tasks
 
     paths: list[str] = []
     for spec in args.scenes:
@@ -74,66 +79,41 @@ def run(args: argparse.Namespace) -> int:
         if not found:
             raise UserError(f"{spec}: no scene files match")
         paths += found
-    from dvsot.core import bounds
-
     if args.output and args.out_dir:
         raise UserError("-o names the output file and --out-dir a directory for <name>.h5 files: give one of them")
     for problem in (bounds.range_problem("--jobs", args.jobs, 1, bounds.MAX_WORKERS),
                     args.variants is not None and bounds.range_problem("--variants", args.variants, 1,
-                                                                          bounds.MAX_VARIANTS)):
+                                                                        bounds.MAX_VARIANTS)):
         if problem:  # before any scene is read or drawn
             raise UserError(problem)
-    overrides = _overrides(args)
-    if args.variants is not None or args.scheduler or args.dry_run or args.resume:
-        return _many(args, paths, overrides)
-    from dvsot.pipeline.scene_files import generate_scenes
-
-    summaries = generate_scenes(paths, args.output, args.out_dir, overrides, args.preview, args.jobs, args.keep_frames,
-                                args.quiet, _warn, _LABELS)
-    for s in summaries:
-        if args.quiet:
-            print(json.dumps(s))
-        else:
-            print("\n".join(f"{k:>24}: {v}" for k, v in s.items()))
-    return 0
-
-
-def _many(args: argparse.Namespace, paths: list[str], overrides: dict) -> int:
-    """A template's variants or several scenes, each its own task (dvsot.pipeline.many_scenes); exit 1 if any finally failed."""
-    import json
-    import sys
-
-    from dvsot.pipeline.many_scenes import generate_many, many_tasks
-    from dvsot.core.errors import UserError
-    from dvsot.pipeline.scene_runner import summary_line
-
-    if args.output or args.keep_frames:
-        raise UserError("--variants, --scheduler, --dry-run and --resume write <name>.h5 files and a manifest into "
-                        "--out-dir; -o and --keep-frames do not apply")
-
-    # a dry run checks each drawn scene's view here; a render run in each task (warnings in the manifest)
-    tasks, inputs = many_tasks(paths, args.out_dir or "out", args.variants, overrides, args.preview,
-                               _warn if args.dry_run or args.variants is None else None, _LABELS)
-    if args.dry_run:
-        for t in tasks:
-            print(f"# ---- {t.name}: {t.output}\n{t.text}")
+    if args.dry_run:  # each drawn scene checked, its view included, and printed
+        tasks, _ = many_tasks(paths, args.out_dir or "out", args.variants, _overrides(args), args.preview, _warn,
+                              _LABELS, output=args.output)
+        print("".join(f"# ---- {t.name}: {t.output}\n{t.text}\n" for t in tasks), end="")
         return 0
-    scheduler = args.scheduler or (f"local:{args.jobs}" if args.jobs > 1 else None)
+    scenes = args.variants or len(paths)
+    scheduler = args.scheduler or (f"local:{min(args.jobs, scenes)}" if args.jobs > 1 and scenes > 1 else None)
+    # else one scene rendered here: its summary, no manifest (dvsot.pipeline.many_scenes.generate_scenes)
+    written = scheduler is not None or args.resume or len(paths) > 1 or args.variants is not None
 
     def report(rec: dict) -> None:
-        if args.quiet:
-            if rec["status"] != "retrying":
-                print(json.dumps(rec), flush=True)
-        else:
+        if written and args.quiet and rec["status"] != "retrying":
+            print(json.dumps(rec), flush=True)
+        elif written and not args.quiet:
             tried = rec["attempts"][-1]
             where = f" on {tried['worker']}" if tried.get("worker") else ""
             print(f"{rec['name']}: {rec['status']}{where}" + (f": {rec['error']}" if rec["error"] else ""),
                   file=sys.stderr, flush=True)
-        if rec.get("warnings") and rec.get("variant") is not None:
-            for w in rec["warnings"]:
+        if rec.get("variant") is not None:
+            for w in rec.get("warnings") or []:
                 _warn(f"{rec['name']}: {w}")
 
-    manifest = generate_many(tasks, inputs, args.out_dir or "out", scheduler, args.retries, args.resume, report,
-                             _LABELS)
-    print(summary_line(manifest), file=sys.stderr)
-    return 1 if any(r["status"] == "failed" for r in manifest.records) else 0
+    manifest = generate_scenes(paths, args.output, args.out_dir, _overrides(args), args.preview, scheduler,
+                               args.keep_frames, args.variants, args.retries, args.resume, args.quiet,
+                               _warn, report, _LABELS)
+    if manifest.path is not None:
+        print(summary_line(manifest), file=sys.stderr)
+    else:
+        summary = manifest.summaries[0]
+        print(json.dumps(summary) if args.quiet else "\n".join(f"{k:>24}: {v}" for k, v in summary.items()))
+    return 1 if manifest.failed() else 0

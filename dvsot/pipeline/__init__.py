@@ -1,2 +1,3 @@
 """From inputs to dataset files: a scene rendered (generate), frames you have (simulate), the frames -> events ->
-file loop both share (sequence), and many scenes at once (many_scenes, run by scene_runner)."""
+file loop both share (sequence), and scenes as checked tasks (scene_sources, scene_task) rendered by one path,
+here or on a cluster, with a manifest (many_scenes, manifest)."""

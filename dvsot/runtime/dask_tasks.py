@@ -5,6 +5,9 @@ One loop serves every command that runs on a cluster (`dvsot generate`, `dvsot b
 (the task raised, returned a failure, or its worker died) as one line and resubmits it, on a worker not yet
 tried while there is one, up to `retries` times, while the other tasks go on.
 
+`TaskRunner(None)` runs the same calls in this process, in order, under the same failure and retry rules
+(`run_here`), so a command has one path whether or not it has a cluster.
+
 `local:N` runs N worker processes of this process (dvsot.runtime.local_workers: they die with it and stop quietly);
 `generate --jobs N` and `bench --jobs N` are `local:N`. A run whose tasks write files holds a lease in its
 output directory (dvsot.runtime.staging.RunLease): when the run stops here (an interrupt, an error), the lease is
@@ -277,15 +280,89 @@ def _run_tasks(client, fn, calls, retries, on_result, on_failure, failure_of, st
     return results
 
 
-def map_tasks(scheduler: str, fn: Callable, calls: list[tuple],
+def run_here(fn: Callable, calls: list[tuple], retries: int = 0,
+             on_result: Callable[[int, Any], None] | None = None,
+             on_failure: Callable[[int, Failure, bool], None] | None = None,
+             failure_of: Callable[[Any], Failure | None] = _failure_of,
+             stop_on_failure: bool = False, name: str = "task", **_: Any) -> list:
+    """fn(*calls[k]) for every k in this process, in order, under run_tasks' rules; results in call order.
+
+    A failed call (it raised an Exception, or failure_of says its result is one) is tried again here until it
+    has failed retries + 1 times; an interrupt is not a failure and ends the run. stop_on_failure: the first
+    failure is raised (the call's own UserError or RunError, else a RunError of one line). run_tasks' `where` and
+    `lease_dir` do not apply: this process's own interrupt stops its writes.
+    """
+    results: list = []
+    for k, call in enumerate(calls):
+        for attempt in range(1, retries + 2):
+            try:
+                result = fn(*call)
+                failure = failure_of(result)
+            except Exception as exc:  # as _guarded does in a worker: one line, not a traceback
+                if stop_on_failure and isinstance(exc, (UserError, RunError)):
+                    raise
+                kind = "user" if isinstance(exc, UserError) else "run" if isinstance(exc, RunError) else None
+                result = failure = Failure(exception_line(exc, 300), worker_address(), kind,
+                                           str(exc) if kind else None)
+            if failure is None:
+                if on_result is not None:
+                    on_result(k, result)
+                break
+            if stop_on_failure:
+                if failure.kind == "user":
+                    raise UserError(failure.message or failure.error)
+                raise RunError(failure.message if failure.kind == "run" and failure.message else
+                               f"{name} {k + 1} of {len(calls)} failed here: {failure.error}")
+            final = attempt > retries
+            if on_failure is not None:
+                on_failure(k, failure, final)
+            if final:
+                break
+        results.append(result)
+    return results
+
+
+class TaskRunner:
+    """`with TaskRunner(scheduler) as runner`: runner.run(fn, calls, ...) runs calls as tasks on a cluster
+    (local:N or tcp://HOST:PORT, run_tasks) or, with scheduler None, in this process (run_here), under the same
+    failure, retry and result rules; runner.client is the cluster's client (None here)."""
+
+    def __init__(self, scheduler: str | None) -> None:
+        self.scheduler = scheduler
+        self.cluster = Cluster(scheduler) if scheduler is not None else None
+        self.client = None
+
+    def __enter__(self) -> "TaskRunner":
+        if self.cluster is not None:
+            self.client = self.cluster.__enter__()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.cluster is not None:
+            self.cluster.__exit__(*exc)
+
+    def hosts(self) -> dict[str, int] | None:
+        """{host: number of workers on it} on a cluster (host_workers), None in this process."""
+        return host_workers(self.client) if self.client is not None else None
+
+    def run(self, fn: Callable, calls: list[tuple], retries: int = 0, **kw: Any) -> list:
+        """fn(*call) for every call (run_tasks' keywords: on_result, on_failure, failure_of, stop_on_failure,
+        name, where, lease_dir); results in call order, a Failure where a call finally failed."""
+        if self.client is None:
+            return run_here(fn, calls, retries, **kw)
+        return run_tasks(self.client, fn, calls, retries, **kw)
+
+
+def map_tasks(scheduler: str | None, fn: Callable, calls: list[tuple],
               on_result: Callable[[int, Any], None] | None = None,
               lease_dir: str | os.PathLike | None = None) -> list:
-    """fn(*call) for every call on a new client of `scheduler` (local:N or tcp://HOST:PORT); results in call order.
+    """fn(*call) for every call on a new client of `scheduler` (local:N or tcp://HOST:PORT; None: in this process,
+    in order); results in call order.
 
     Results are taken as they finish (on_result(k, result) for each); a task that raised, or whose worker
     died, is one line (its UserError or RunError as such, else a RunError) and the rest are cancelled.
     lease_dir: where the tasks write, if they do (run_tasks).
     """
-    with Cluster(scheduler) as client:
-        return run_tasks(client, fn, calls, on_result=on_result, stop_on_failure=True, name="task", where=scheduler,
-                         lease_dir=lease_dir)
+    with TaskRunner(scheduler) as runner:
+        return runner.run(fn, calls, on_result=on_result, stop_on_failure=True, name="task",
+                          where=scheduler or "", lease_dir=lease_dir)

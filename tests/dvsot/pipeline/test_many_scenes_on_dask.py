@@ -43,25 +43,6 @@ def cores():
     return len(os.sched_getaffinity(0))
 
 
-def test_each_worker_on_a_machine_gets_its_own_share_of_the_cpus():
-    from dvsot.pipeline.scene_runner import cpu_share
-
-    assert [cpu_share([0, 1], k, 2) for k in range(2)] == [{0}, {1}]
-    assert [cpu_share([4, 5, 6, 7, 8], k, 2) for k in range(2)] == [{4, 5}, {6, 7}]
-    assert cpu_share([0, 1], 0, 1) is None  # one worker has them all
-    assert cpu_share([0, 1], 2, 3) is None  # more workers than CPUs: not bound
-    assert cpu_share([0, 1, 2, 3], 5, 2) is None
-
-
-def test_a_bound_worker_renders_with_its_bound_cpus(monkeypatch):
-    from dvsot.pipeline import scene_runner
-
-    monkeypatch.setattr(scene_runner, "_BOUND", [4, 5])  # as warm_up leaves a worker bound to two CPUs of four
-    assert scene_runner._threads_for_this_worker({"tcp://127.0.0.1": 2}) == 2
-    monkeypatch.setattr(scene_runner, "_BOUND", [])
-    assert scene_runner._threads_for_this_worker({}) == cores()  # outside a worker: every CPU
-
-
 def test_local_cluster_records_a_failure_retried_elsewhere_and_resume_renders_only_what_is_missing(tmp_path, capsys):
     import bpy  # noqa: F401  as after any render in this process: the workers inherit Blender's sys.path
 
