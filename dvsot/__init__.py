@@ -9,6 +9,14 @@ reads them (with a recording's boxes). Each name is imported on first use, so `i
 torch, no bpy).
 """
 
+import os as _os
+import sys as _sys
+
+if _sys.argv and (_sys.argv[0] == "-m" or _os.path.basename(_sys.argv[0]) == "dvsot"):  # the dvsot command starting
+    from dvsot.runtime.interrupts import at_startup as _at_startup
+
+    _at_startup()  # a signal during its imports ends it with one line, not an import's traceback
+
 from dvsot.lazy import lazy_attributes
 
 __version__ = "0.1.0"
