@@ -158,6 +158,9 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
     """
     root = output_dir(root, flag)
     rel = {Path(os.path.relpath(Path(root) / w, root)) for w in writes}
+    collision = tree_collision(rel)
+    if collision:
+        raise UserError(f"{root}: {flag}: {collision}; rename one")
     for r in sorted(rel):
         if r.parts[0] == "..":
             raise ValueError(f"{r}: not under {root}")
@@ -196,6 +199,22 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
                         f"({', '.join(sorted(strangers)[:3])}{' ...' if len(strangers) > 3 else ''}): it holds one "
                         "run's files only; choose another directory or empty this one")
     return root
+
+
+def tree_collision(files: Iterable[str | os.PathLike]) -> str | None:
+    """Why a set of relative file paths cannot all be written in one tree (a file where another path needs a
+    directory; two names equal up to case, which one file on a case-insensitive file system), else None."""
+    paths = {Path(f) for f in files}
+    dirs = {p for f in paths for p in f.parents if p != Path(".")}
+    for f in sorted(paths & dirs):
+        inner = next(p for p in sorted(paths) if f in p.parents)
+        return f"{f} is written as a file and is also the directory of {inner}"
+    seen: dict[str, Path] = {}
+    for p in sorted(paths | dirs):
+        other = seen.setdefault(str(p).casefold(), p)
+        if other != p:
+            return f"{other} and {p} differ only in case (one file on a case-insensitive file system)"
+    return None
 
 
 def disk_error(exc: BaseException) -> str | None:
@@ -370,6 +389,8 @@ class RunOutputs:
                 self._entries.clear()  # the journal owns the staged files now: never removed, only renamed
                 try:
                     staging.apply_journal(journal)
+                except ValueError as exc:  # checked before any rename: nothing replaced, the staged files gone
+                    raise RunError(f"{first}: this run's outputs were not put in place ({exc})") from None
                 except OSError as exc:
                     raise RunError(f"{first}: renaming this run's outputs into place failed ({exc.strerror or exc}); "
                                    f"the next dvsot run in {journal.parent} completes it from {journal.name}") from None
