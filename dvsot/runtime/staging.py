@@ -162,9 +162,12 @@ def journal_problem(journal: Path, data: dict) -> str | None:
 
 
 def discard_journal(journal: Path, data: dict) -> None:
-    """Drop a journal that cannot complete: its staged files not yet renamed and its pointers go, no manifest."""
+    """Drop a journal that cannot complete: its own staged files not yet renamed and its pointers go, no manifest
+    (a staged name of another run, live perhaps, is left alone)."""
+    m = _NAME.match(journal.name)
     for e in data.get("entries", []):
-        if e.get("staged") and e.get("kind") in ("file", "dir"):
+        n = _NAME.match(Path(e["staged"]).name) if e.get("staged") and e.get("kind") in ("file", "dir") else None
+        if m and n and n["token"] == m["token"] and n["pid"] == m["pid"] and n["kind"] == "tmp":
             _remove(Path(e["staged"]))
     for pointer in data.get("pointers", []):
         Path(pointer).unlink(missing_ok=True)
