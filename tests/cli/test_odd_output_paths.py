@@ -167,3 +167,11 @@ def test_the_regular_input_helper(tmp_path):
             open_input(p, "rb", "a test input")
     with pytest.raises(UserError, match="no such file"):
         regular_input(tmp_path / "none.txt")
+
+
+@pytest.mark.parametrize("module", ["..x", "x/y.py", "a..b"])
+def test_a_tracker_module_that_is_no_module_name_is_one_line(tmp_path, capsys, module):
+    assert main(["bench", "--tracker", "kcf", "--tracker-module", module, "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dvsot bench: error: --tracker-module {module}: not a module name (dotted Python identifiers, "
+                   "e.g. mypkg.trackers)"], err
