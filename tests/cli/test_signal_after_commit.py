@@ -79,6 +79,27 @@ def test_a_signal_during_the_final_renames_is_a_completed_run(tmp_path, inputs, 
     assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # every staged file was put in place
 
 
+@pytest.mark.blender
+def test_a_signal_during_generates_final_renames_is_a_completed_run(tmp_path):
+    from synthetic import MINIMAL_SCENE
+
+    scene = tmp_path / "q.yaml"
+    scene.write_text(MINIMAL_SCENE.replace("duration_s: 0.1", "duration_s: 0.02\nsensor: {width: 64, height: 48}"))
+    out = tmp_path / "o"
+    out.mkdir()
+    p = subprocess.Popen([sys.executable, "-c", SLOW_FINAL_RENAME, "generate", str(scene), "-o", str(out / "q.h5"),
+                          "--preview", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in p.stdout:
+        if line.startswith("RENAMED"):
+            break
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=600)
+    assert p.returncode == 0, err
+    assert err.strip().splitlines() == ["dvsot generate: done; SIGINT arrived after its outputs were written"], err
+    assert sorted(n for n in os.listdir(out) if "~" not in n) == sorted(n for n in os.listdir(out))  # no temps
+    assert {"q.gif", "q.h5"} <= set(os.listdir(out))
+
+
 def test_a_signal_while_the_process_exits_changes_nothing(tmp_path, inputs):
     p = subprocess.Popen([sys.executable, "-c", SLOW_EXIT, "export", str(inputs / "seq.h5"), "-o",
                           str(tmp_path / "x.csv")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
