@@ -141,12 +141,23 @@ def _startup_handler(signum: int, frame) -> None:
     os._exit(128 + signum)  # nothing has started: no output to clean up, no traceback of a half-done import
 
 
+def _ignore_at_teardown() -> None:
+    """The last exit handler: the interpreter's finalisation puts SIG_DFL back for every signal with a Python handler,
+    and native clean-up (Blender's) runs after it; an ignored signal stays ignored, so the decided status stands."""
+    if _state.get("after"):
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+
+
 def at_startup() -> None:
     """In the `dvsot` process, before its imports: a signal ends it with one line until `install()` takes over."""
     if threading.current_thread() is threading.main_thread():
+        import atexit
+
         for s in SIGNALS:
             signal.signal(s, _startup_handler)
         _state["command"] = True
+        atexit.register(_ignore_at_teardown)  # registered first, so run last
 
 
 def is_command() -> bool:
@@ -167,6 +178,7 @@ def after_command(prog: str, status: int) -> None:
         for s in SIGNALS:
             signal.signal(s, handler)
         sys.unraisablehook = lambda info: None
+        _state["after"] = True
 
 
 def quiet_exit() -> None:

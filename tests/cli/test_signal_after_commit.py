@@ -37,11 +37,11 @@ sys.exit(main(sys.argv[1:]))
 SLOW_EXIT = """
 import atexit, sys, time
 sys.argv[0] = "dvsot"
+from dvsot.cli import main
 def slow():
     print("EXITING", flush=True)
     time.sleep(2)
 atexit.register(slow)
-from dvsot.cli import main
 sys.exit(main())
 """
 
@@ -98,6 +98,23 @@ def test_a_signal_during_generates_final_renames_is_a_completed_run(tmp_path):
     assert err.strip().splitlines() == ["dvsot generate: done; SIGINT arrived after its outputs were written"], err
     assert sorted(n for n in os.listdir(out) if "~" not in n) == sorted(n for n in os.listdir(out))  # no temps
     assert {"q.gif", "q.h5"} <= set(os.listdir(out))
+
+
+@pytest.mark.blender
+@pytest.mark.parametrize("delay", [0.1, 0.3])
+def test_a_signal_while_blender_cleans_up_changes_nothing(tmp_path, delay):
+    from synthetic import MINIMAL_SCENE
+
+    scene = tmp_path / "q.yaml"
+    scene.write_text(MINIMAL_SCENE.replace("duration_s: 0.1", "duration_s: 0.02\nsensor: {width: 64, height: 48}"))
+    p = subprocess.Popen([sys.executable, "-m", "dvsot.cli", "generate", str(scene), "-o", str(tmp_path / "q.h5"),
+                          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p.stdout.readline()  # the summary: printed after the commit, before the interpreter (and Blender) exits
+    time.sleep(delay)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=600)
+    assert p.returncode == 0 and "Traceback" not in err, (p.returncode, err)
+    assert (tmp_path / "q.h5").is_file()
 
 
 def test_a_signal_while_the_process_exits_changes_nothing(tmp_path, inputs):
