@@ -56,6 +56,10 @@ def scene_outputs(paths: list[str], configs: list, output: str | None = None, ou
         gif = o.with_suffix(".gif")
         if preview:
             check_preview_size(p, c, label("preview", labels))
+        if preview and not gif.is_dir():
+            from dvsot.runtime.outputs import refuse_non_regular
+
+            refuse_non_regular(gif, label("preview", labels))  # a FIFO, socket or device named like the preview
         if preview and (gif.is_dir() or gif == o):
             raise UserError(f"{gif}: {label('preview', labels)} would write this path, " +
                             ("a directory" if gif.is_dir() else "the dataset file itself"))

@@ -170,6 +170,8 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
                 raise UserError(f"{p}: {flag}: a file where the directory of {Path(root, r)} goes")
             if k == len(r.parts) and p.is_dir():
                 raise UserError(f"{p}: {flag}: a directory where this run writes a file")
+            if k == len(r.parts):
+                refuse_non_regular(p, flag)  # a FIFO, socket or device where this run writes a file
     if not root.is_dir():
         return root
     for d, dirs, _ in os.walk(root):

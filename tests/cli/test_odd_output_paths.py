@@ -54,7 +54,14 @@ def _socket(p: Path) -> Path:
 
 
 def _device(p: Path) -> Path:
-    p.symlink_to("/dev/null")  # through its symlink, the output is a character device
+    # a private node of the null device (never the system's /dev/null: a regression would replace it), reached through
+    # a symlink, as an output given as a link to a device is
+    node = p.with_name("null-device")
+    try:
+        os.mknod(node, stat.S_IFCHR | 0o600, os.makedev(1, 3))
+    except (PermissionError, OSError):
+        pytest.skip("making a device node needs root")
+    p.symlink_to(node)
     return p
 
 
@@ -82,7 +89,22 @@ def test_an_output_that_is_not_a_regular_file_is_refused_before_any_work(tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
     assert sorted((p.name, stat.S_IFMT(p.lstat().st_mode)) for p in tmp_path.iterdir()) == before
-    assert os.path.exists("/dev/null") and stat.S_ISCHR(os.stat("/dev/null").st_mode)
+
+
+def test_a_preview_and_a_bench_result_that_are_fifos_are_refused(tmp_path, data, capsys):
+    _fifo(tmp_path / "q.gif")
+    assert main(["generate", str(data / "q.yaml"), "-o", str(tmp_path / "q.h5"), "--preview", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "q.gif" in err[0] and "names a FIFO" in err[0], err
+    d = tmp_path / "data"
+    d.mkdir()
+    _bench_file(d / "s.h5")
+    (tmp_path / "b" / "kcf").mkdir(parents=True)
+    _fifo(tmp_path / "b" / "kcf" / "s.txt")
+    assert main(["bench", "--tracker", "kcf", "--data", str(d), "--out", str(tmp_path / "b"), "--quiet",
+                 "--no-energy"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "s.txt" in err[0] and "names a FIFO" in err[0], err
 
 
 @pytest.mark.parametrize("side", ["x.csv.boxes.csv", "x.csv.objects.csv"])
@@ -162,7 +184,7 @@ def test_the_regular_input_helper(tmp_path):
     (tmp_path / "a.txt").write_text("hello")
     assert read_text(tmp_path / "a.txt") == "hello" and regular_input(tmp_path / "a.txt") == tmp_path / "a.txt"
     assert read_text(tmp_path / "none.txt", missing_ok=True) is None
-    for p in (_fifo(tmp_path / "p"), _socket(tmp_path / "s"), Path("/dev/null"), tmp_path):
+    for p in (_fifo(tmp_path / "p"), _socket(tmp_path / "s"), Path("/dev/null"), tmp_path):  # read only
         with pytest.raises(UserError, match="not a regular file to read"):
             open_input(p, "rb", "a test input")
     with pytest.raises(UserError, match="no such file"):
