@@ -60,10 +60,10 @@ _state = {"depth": 0, "pending": None, "parent": None, "raised": None, "seen": N
 
 
 def _handler(signum: int, frame) -> None:
-    if _state["finished"] and not _state["late"]:  # a commit's renames have begun: its outputs stand, the signal is late
-        _state["late"] = signum
+    if _state["finished"] and (not _state["late"] or _state["depth"]):  # a commit's renames have begun: late
+        _state["late"] = _state["late"] or signum
         return
-    if _state["finished"]:  # a second signal after the commit: the user wants the process to stop now
+    if _state["finished"]:  # a second signal after the commit (its renames done): the user wants the process to stop
         _state["finished"] = False
         _state["late"] = None
     _state["seen"] = _state["seen"] or signum
