@@ -147,9 +147,14 @@ def _expected_digest(p: Path, meta: dict) -> str | None:
     """The weights' digest a checkpoint states: in its metadata, else in the .json of the same run beside it."""
     if isinstance(meta.get(DIGEST_KEY), str):
         return meta[DIGEST_KEY]
+    from dvsot.runtime.inputs import read_text
+
     try:  # a checkpoint written before digests whose digest was derived later into its .json (shipped ones)
-        side = json.loads(metadata_path(p).read_text())
-    except (OSError, ValueError, UnicodeDecodeError):
+        text = read_text(metadata_path(p), "the checkpoint's metadata file", missing_ok=True)  # a FIFO: refused
+        side = json.loads(text) if text is not None else None
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        if isinstance(exc, UserError):
+            raise
         return None
     if isinstance(side, dict) and side.get("run") == meta.get("run") and isinstance(side.get(DIGEST_KEY), str):
         return side[DIGEST_KEY]

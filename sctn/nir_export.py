@@ -43,6 +43,7 @@ What NIR cannot say:
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 from typing import Literal
@@ -224,6 +225,8 @@ def export_nir(checkpoint: str | os.PathLike, output: str | os.PathLike,
     out = output_file(output, "-o", [src])
     model = _sctn_checkpoint(src)
     graph = sctn_graph(model, discretisation, source=src.name)
-    with replacing(out) as tmp:
-        nir.write(tmp, graph)
+    buffer = io.BytesIO()  # HDF5 built in memory: a full disk then fails one plain write, not h5py's teardown
+    nir.write(buffer, graph)
+    with replacing(out) as tmp, open(tmp, "wb") as f:
+        f.write(buffer.getbuffer())
     return out

@@ -79,7 +79,9 @@ def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | Non
 
         with Dataset(sequence) as ds:
             samples = len(ds.boxes().t)
-    files = sorted(Path(frames_dir).glob("*.npy"))
+    from dvsot.runtime.inputs import regular_input
+
+    files = [regular_input(f, "a kept frame") for f in sorted(Path(frames_dir).glob("*.npy"))]  # a FIFO: no wait
     if len(files) != samples:
         raise UserError(f"{frames_dir}: {len(files)} frames (.npy), but {sequence} has {samples} render samples")
     return files

@@ -71,6 +71,8 @@ def get_tracker(name: str, **options) -> "Tracker":  # noqa: F821 - imported laz
 def load_tracker_module(module: str, label: str = "tracker module") -> None:
     """Import a user module whose trackers register themselves; a missing module raises UserError (naming it as
     `label` and the module)."""
+    if not module or not all(part.isidentifier() for part in module.split(".")):  # "..x", "a/b.py", "a..b"
+        raise UserError(f"{label} {module}: not a module name (dotted Python identifiers, e.g. mypkg.trackers)")
     try:
         importlib.import_module(module)
     except ModuleNotFoundError as exc:

@@ -9,8 +9,12 @@ import signal
 import sys
 import warnings
 
-from dvsot import __version__
 from dvsot.runtime import interrupts
+
+if sys.argv and (sys.argv[0] == "-m" or os.path.basename(sys.argv[0]) == "dvsot"):  # the dvsot command starting
+    interrupts.at_startup()  # a signal during the imports below ends it with one line, not an import's traceback
+
+from dvsot import __version__  # noqa: E402
 from dvsot.core.errors import RunError, UserError
 from dvsot.cli.flags import flag_labels
 
@@ -81,6 +85,17 @@ def _stdout_closed() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; bad input prints one line and returns 2."""
+    command = interrupts.is_command() and argv is None
+    status = 1
+    try:
+        status = _main(argv)
+        return status
+    finally:
+        if command:  # the process exits next (Blender's clean-up may take a while): its status is decided
+            interrupts.after_command("dvsot " + next((a for a in sys.argv[1:] if a in COMMANDS), ""), status)
+
+
+def _main(argv: list[str] | None) -> int:
     saved = interrupts.install()  # SIGTERM is handled as SIGINT is: outputs cleaned up, one line, 128 + signal
     try:
         parser = build_parser()

@@ -5,6 +5,9 @@ The format follows the suffix: .aedat4 (iniVation DV), .raw (Prophesee EVT 2, or
 and its object table goes to OUT.objects.csv as id,name,role), .txt (rpg/ESIM: first line "width
 height", then "t x y p" with t in seconds). Timestamps are the recording's own clock (t + /t_offset).
 The boxes go to OUT.boxes.csv as t_s,x,y,w,h (nan = no target), which `dvsot import --boxes` reads.
+OUT is the output's full name: -o x.csv writes x.csv.boxes.csv (and x.csv.objects.csv). The side files are
+replaced with the events in one step; one that this export does not write, left by an earlier export of the
+same output, is removed then.
 
 Examples:
   dvsot export data/dvsot21/woman_cat.h5 -o out/woman_cat.aedat4
@@ -25,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     default = EXPORT_EVT_VERSION.removeprefix("evt")
     p.add_argument("--evt", choices=["2", "3"], default=default,
                    help=f"EVT version of a .raw file (default {default}: expelliarmus misreads EVT 3 times)")
-    p.add_argument("--no-boxes", action="store_true", help="do not write OUT.boxes.csv")
+    p.add_argument("--no-boxes", action="store_true", help="do not write OUT.boxes.csv (e.g. x.csv.boxes.csv)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -12,7 +12,7 @@ and bench scores only the segments matched to one (docs/benchmarks.md); --interp
 dense track instead (a file exported by dvsot).
 
 Examples:
-  dvsot import out/woman_cat.aedat4 --boxes out/woman_cat.boxes.csv --interpolate -o out/woman_cat.h5
+  dvsot import out/woman_cat.aedat4 --boxes out/woman_cat.aedat4.boxes.csv --interpolate -o out/woman_cat.h5
   dvsot import seq/events.aedat4 --boxes seq/groundtruth_rect.txt --box-times-from-frames -o data/fe108/seq.h5
   dvsot import seq/events.raw --size 640x480 --boxes seq/groundtruth.txt --box-times-us seq/frame_times.txt \\
       --absent seq/absent.txt -o data/recorded/seq.h5

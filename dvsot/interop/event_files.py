@@ -284,23 +284,60 @@ def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: n
         path, version=versions[kind], zero_t0=True, file_type=kind)
 
 
+# An export's side files: named from the output's full name (x.csv -> x.csv.boxes.csv), so outputs that share a
+# stem never share a side file; each starts with its own first line, by which a file there is known to be one.
+SIDE_FILES = {"boxes": (".boxes.csv", "# t_s,x,y,w,h"), "objects": (".objects.csv", "id,name,role")}
+
+
 def objects_path(events_out: str | os.PathLike) -> Path:
-    """Where the object table goes beside a CSV export with object labels: OUT.csv -> OUT.objects.csv."""
+    """Where the object table goes beside a CSV export with object labels: OUT.csv -> OUT.csv.objects.csv."""
     p = Path(events_out)
-    return p.with_name(p.stem + ".objects.csv")
+    return p.with_name(p.name + SIDE_FILES["objects"][0])
 
 
 def boxes_path(events_out: str | os.PathLike) -> Path:
-    """Where the box track goes beside an exported events file: OUT.aedat4 -> OUT.boxes.csv."""
+    """Where the box track goes beside an exported events file: OUT.aedat4 -> OUT.aedat4.boxes.csv."""
     p = Path(events_out)
-    return p.with_name(p.stem + ".boxes.csv")
+    return p.with_name(p.name + SIDE_FILES["boxes"][0])
+
+
+def _side_kind(path: Path) -> str | None:
+    """Which side table an existing regular file is, by its first line ("boxes", "objects"), else None."""
+    from dvsot.runtime.inputs import open_input
+
+    with open_input(path, "rb", "an export's side file") as fh:
+        first = fh.readline(256).decode("utf-8", "replace")
+    return next((kind for kind, (_, head) in SIDE_FILES.items() if first.startswith(head)), None)
+
+
+def check_export_outputs(out_path: str | os.PathLike, flag: str, inputs=(), boxes: bool = True) -> list[Path]:
+    """Check an export's output and its side files before any work (UserError); the side files it may write.
+
+    Refused: an output that is another output's side file (`x.csv.boxes.csv` beside `x.csv`), and a side file that
+    would replace a file that is not that kind of side table (another export's events file, a user's file)."""
+    from dvsot.runtime.outputs import output_file
+
+    out = Path(out_path)
+    for kind, (suffix, _) in SIDE_FILES.items():
+        owner = out.with_name(out.name[: -len(suffix)]) if out.name.endswith(suffix) else None
+        if owner is not None and owner.name and os.path.lexists(owner):
+            raise UserError(f"{out_path}: {flag} names the {kind} table of the export {owner}; name another output")
+    output_file(out_path, flag, inputs)
+    sides = ([objects_path(out)] if event_format(out, flag) == "csv" else []) + ([boxes_path(out)] if boxes else [])
+    for side in sides:
+        kind = "objects" if side == objects_path(out) else "boxes"
+        output_file(side, f"{flag} (its {kind} table {side.name})", inputs)
+        if side.is_file() and _side_kind(side) != kind:
+            raise UserError(f"{side}: {flag}: the {kind} table of {out.name} would replace this file, which is not "
+                            f"an export's {kind} table (another output's file?); move it or name another output")
+    return sides
 
 
 def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -> None:
     """Box rows as CSV t_s,x,y,w,h (seconds with 6 decimals, float32 values that read back exactly, nan = absent)."""
     t = np.asarray(t_us, np.int64)
     with open(path, "w") as fh:
-        fh.write("# t_s,x,y,w,h (pixels; nan = no target)\n")
+        fh.write(SIDE_FILES["boxes"][1] + " (pixels; nan = no target)\n")
         for ti, row in zip(t, np.asarray(xywh, np.float32)):
             sign, ti = ("-", -ti) if ti < 0 else ("", ti)
             fh.write(f"{sign}{ti // 1_000_000}.{ti % 1_000_000:06d}," + ",".join(f"{v:.9g}" for v in row) + "\n")
@@ -309,24 +346,28 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
 def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
                    evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True,
                    labels: Mapping[str, str] | None = None) -> list[Path]:
-    """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv; the paths written.
+    """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv (OUT the output's
+    full name: x.csv -> x.csv.boxes.csv); the paths written.
 
     A CSV export of a file with per-event labels gets the object column and the object table in OUT.objects.csv
-    (id,name,role). Every output is checked before anything is read (UserError: an unknown suffix, a directory, an
-    output that is the dataset file); labels: how messages name out_path (a command's flag)."""
+    (id,name,role). Every output is checked before anything is read (UserError: an unknown suffix, a directory, a
+    device or FIFO, an output that is the dataset file, a side file that is another output's); the side files are
+    replaced with the events in one commit, and one the new export does not write (no labels, boxes=False) that the
+    previous export of this output left is removed in it. labels: how messages name out_path (a command's flag)."""
     from dvsot.dataset import Dataset
     from dvsot.runtime.outputs import output_file, replacing, run_outputs
 
     out = Path(out_path)
     flag = label("out_path", labels)
     event_format(out, flag)  # an unknown suffix fails before anything is read
-    output_file(out, flag, [dataset_path])
+    output_file(out_path, flag, [dataset_path])  # as given: a trailing slash names a directory, refused
     if event_format(out, flag) == "csv":  # written only when the file has labels
         output_file(objects_path(out), f"{flag} (its .objects.csv)", [dataset_path])
     if boxes:
         output_file(boxes_path(out), f"{flag} (its .boxes.csv)", [dataset_path])
     if evt_version not in EVT_VERSIONS:
         raise UserError(f"evt_version {evt_version!r}: expected one of {', '.join(EVT_VERSIONS)}")
+    check_export_outputs(out, flag, [dataset_path], boxes)
     with Dataset(dataset_path) as ds:
         parts = list(ds.chunks())
         track = ds.boxes()
@@ -339,7 +380,7 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
     objects = None
     if table is not None:
         objects = np.concatenate([b.object for b in parts]) if parts else np.empty(0, np.uint8)
-    with run_outputs():  # all written to temp names, renamed together when all are complete
+    with run_outputs() as run:  # all written to temp names, renamed together when all are complete
         with replacing(out) as tmp_events:
             write_event_file(tmp_events, t, x, y, p, width, height, evt_version, objects)
         if table is not None:
@@ -352,4 +393,8 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
         if boxes:
             with replacing(boxes_path(out)) as tmp_boxes:
                 write_box_csv(tmp_boxes, track.t + offset, track.xywh)
+        for side in (objects_path(out),) * (table is None) + (boxes_path(out),) * (not boxes):
+            kind = "objects" if side == objects_path(out) else "boxes"
+            if side.is_file() and _side_kind(side) == kind:  # the previous export's: it goes in the same commit
+                run.remove(side)
     return [out] + ([objects_path(out)] if table is not None else []) + ([boxes_path(out)] if boxes else [])

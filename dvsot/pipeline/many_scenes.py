@@ -19,7 +19,7 @@ from dvsot.pipeline.manifest import Manifest, scene_failure
 from dvsot.pipeline.scene_sources import many_tasks
 from dvsot.pipeline.scene_task import SceneTask, output_is_done, render_scene, render_task, warm_up_scene
 from dvsot.runtime.dask_tasks import Failure, TaskRunner, parse_scheduler
-from dvsot.runtime.outputs import output_dir, output_file
+from dvsot.runtime.outputs import output_dir, output_file, refuse_non_regular
 from dvsot.runtime.warm_up import warm_workers
 
 MANIFEST = "manifest.json"
@@ -44,6 +44,8 @@ def check_outputs(tasks: list[SceneTask], inputs: list[Path], out_dir: str | Pat
             raise UserError(f"{t.source}: scene name gives the same output {o} as {seen[o.resolve()]}; rename one")
         seen[o.resolve()] = t.source
         gif = o.with_suffix(".gif")
+        if t.preview and not gif.is_dir():
+            refuse_non_regular(gif, label("preview", labels))  # a FIFO, socket or device named like the preview
         if t.preview and (gif.is_dir() or gif == o):
             raise UserError(f"{gif}: {label('preview', labels)} would write this path, " +
                             ("a directory" if gif.is_dir() else "the dataset file itself"))

@@ -5,6 +5,13 @@ printed and the render carries on. Inside `deferred()` the handler only records 
 (called between frames) and the block's end raise it. A worker process also treats the death of its
 parent as an interrupt (`set_parent`), and a task of a run whose parent has stopped it (`guarded`: the run's
 lease, dvsot.runtime.staging.RunLease) as one too, so that `check()` and every commit refuse to go on.
+
+Committed: once a command's commit (dvsot.runtime.outputs) starts renaming its outputs in the main process, those
+outputs are in place; a signal from then on is recorded as late (`late()`) and interrupts nothing, until the command
+goes on with other work (`check()`, or a new output staged: `resume()`), where it stops the run as any signal does.
+A second signal after a commit is raised at once. The command line reports a late signal and exits 0. In the
+`dvsot` process itself (`at_startup`), a signal before the command line's handlers are in place ends the process
+with one line, and one after the command has finished (interpreter exit, Blender's clean-up) is only recorded.
 """
 
 from __future__ import annotations
@@ -49,13 +56,16 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
 
 
 _state = {"depth": 0, "pending": None, "parent": None, "raised": None, "seen": None, "last": False,
-          "finished": False, "late": None}
+          "finished": False, "late": None, "installed": False}
 
 
 def _handler(signum: int, frame) -> None:
-    if _state["finished"]:  # the run's final renames have begun: it completes, and says the signal came late
+    if _state["finished"] and (not _state["late"] or _state["depth"]):  # a commit's renames have begun: late
         _state["late"] = _state["late"] or signum
         return
+    if _state["finished"]:  # a second signal after the commit (its renames done): the user wants the process to stop
+        _state["finished"] = False
+        _state["late"] = None
     _state["seen"] = _state["seen"] or signum
     if _state["depth"]:
         _state["pending"] = _state["pending"] or signum  # the first one wins; raised at check() or the block's end
@@ -76,11 +86,12 @@ def install() -> list:
         signal.signal(s, _handler)
     saved.append(("unraisable", sys.unraisablehook))
     sys.unraisablehook = _unraisable
+    _state["installed"] = True
     return saved
 
 
 def _reset() -> None:
-    _state.update(raised=None, seen=None, last=False, finished=False, late=None)
+    _state.update(raised=None, seen=None, last=False, finished=False, late=None, installed=False)
 
 
 def seen() -> int | None:
@@ -100,14 +111,74 @@ def last_step() -> Iterator[None]:
 
 
 def finish() -> None:
-    """Called as a commit starts its renames: inside `last_step()`, the run is complete from here on."""
-    if _state["last"]:
+    """Called as a commit starts its renames: in a command's main thread (not a task's), its outputs are committed."""
+    own = _state["installed"] and threading.current_thread() is threading.main_thread() and _guard.get() is None
+    if _state["last"] or own:
         _state["finished"] = True
 
 
+def committed() -> bool:
+    """Whether the last thing the command did was to commit its outputs (a signal now is late)."""
+    return _state["finished"]
+
+
+def resume() -> None:
+    """The command goes on after a commit (new outputs staged, a next step): a late signal stops it here."""
+    if _state["finished"] and not _state["last"]:
+        _state["finished"] = False
+        signum, _state["late"] = _state["late"], None
+        if signum:
+            raise Interrupted(signum)
+
+
 def late() -> int | None:
-    """A signal that arrived after the run's final renames had begun (the run completed), else None."""
+    """A signal that arrived after the command's last commit had begun renaming (the run completed), else None."""
     return _state["late"]
+
+
+def _startup_handler(signum: int, frame) -> None:
+    os.write(2, f"dvsot: interrupted ({signal.Signals(signum).name})\n".encode())
+    os._exit(128 + signum)  # nothing has started: no output to clean up, no traceback of a half-done import
+
+
+def _ignore_at_teardown() -> None:
+    """The last exit handler: the interpreter's finalisation puts SIG_DFL back for every signal with a Python handler,
+    and native clean-up (Blender's) runs after it; an ignored signal stays ignored, so the decided status stands."""
+    if _state.get("after"):
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+
+
+def at_startup() -> None:
+    """In the `dvsot` process, before its imports: a signal ends it with one line until `install()` takes over."""
+    if threading.current_thread() is threading.main_thread():
+        import atexit
+
+        for s in SIGNALS:
+            signal.signal(s, _startup_handler)
+        _state["command"] = True
+        atexit.register(_ignore_at_teardown)  # registered first, so run last
+
+
+def is_command() -> bool:
+    """Whether this process is the `dvsot` command (`at_startup` ran), not a library user or a test."""
+    return bool(_state.get("command"))
+
+
+def after_command(prog: str, status: int) -> None:
+    """In the `dvsot` process once its command has returned `status`: a signal while the interpreter exits (Blender's
+    clean-up) changes nothing: after a success it is noted in one line, otherwise only recorded; the status stands."""
+
+    def handler(signum: int, frame) -> None:
+        if status == 0:
+            os.write(2, f"{prog}: done; {signal.Signals(signum).name} arrived after its outputs were written\n"
+                     .encode())
+
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, handler)
+        sys.unraisablehook = lambda info: None
+        _state["after"] = True
 
 
 def quiet_exit() -> None:
@@ -177,7 +248,12 @@ def committing() -> ContextManager[None]:
 
 def check() -> None:
     """Raise `Interrupted` if a signal arrived during a deferred block or was raised and swallowed, this
-    worker's parent died, or the run of this task was stopped."""
+    worker's parent died, or the run of this task was stopped; after a commit, the work goes on (`resume`)."""
+    _check_recorded()
+    resume()
+
+
+def _check_recorded() -> None:
     pending = _state["pending"] or _state["raised"]
     if pending:
         _state["pending"] = _state["raised"] = None
@@ -208,4 +284,4 @@ def deferred() -> Iterator[None]:
             for s, h in zip(SIGNALS, saved):
                 signal.signal(s, h)
         if _state["depth"] == 0:
-            check()  # raises the recorded signal (over any exception it caused inside the block)
+            _check_recorded()  # raises the recorded signal (over any exception it caused inside the block)

@@ -1,6 +1,7 @@
 """Outputs: paths checked before any work (exit 2), written as temps and renamed into place, a run's all at once.
 
-* `output_file` / `output_dir`: the checks every command runs before it starts (including a probe
+* `output_file` / `output_dir`: the checks every command runs before it starts (a file output is missing or a regular
+  file: never a device, FIFO, socket or directory, nor a path ending in a slash; a probe
   file created and removed in the target directory), plus the clean-up of temps that dead local
   processes left there (dvsot.runtime.staging).
 * `replacing(path)`: a temp to write; renamed onto `path` when the block succeeds, removed otherwise.
@@ -76,11 +77,27 @@ def check_writable(directory: str | os.PathLike, what: str) -> None:
             os.unlink(probe)
 
 
+def refuse_non_regular(path: str | os.PathLike, flag: str) -> None:
+    """UserError unless `path` (through its symlinks) is missing or a regular file: a file output never replaces a
+    device, FIFO, socket or directory; and a path ending in a slash names a directory, never a file to write."""
+    text = os.fspath(path)
+    if text.endswith(("/", os.sep)) or os.path.basename(text) in ("", ".", ".."):
+        raise UserError(f"{text}: {flag} ends in a slash (a directory); name the file to write")
+    from dvsot.core.bounds import file_kind_problem
+
+    problem = file_kind_problem(text)
+    if problem is None or problem == "no such file":  # a missing directory on the way is reported by the caller
+        return
+    if problem.startswith("is "):
+        raise UserError(f"{text}: {flag} names {problem.removeprefix('is ')}, not a file it may replace")
+    raise UserError(f"{text}: {flag}: {problem}")
+
+
 def output_file(path: str | Path, flag: str, inputs: Iterable[str | Path] = ()) -> Path:
-    """`path` as a file a command may (re)write: its directory exists and is writable, it is no directory and no input."""
+    """`path` as a file a command may (re)write: its directory exists and is writable, it is missing or a regular file
+    (never a device, FIFO, socket or directory, nor a path ending in a slash), and no input."""
+    refuse_non_regular(path, flag)
     p = Path(path)
-    if p.is_dir():
-        raise UserError(f"{p}: {flag} names a directory, not a file")
     t = target(p)
     if not t.parent.is_dir():
         where = f" (a symlink to {t})" if t != p else ""
@@ -116,9 +133,14 @@ def previous_files(manifest: Path) -> set[str]:
     """The files (relative to its directory) an earlier run's manifest names; empty if there is none."""
     import json
 
+    from dvsot.runtime.inputs import read_text
+
     try:
-        data = json.loads(Path(manifest).read_text())
-    except (OSError, ValueError):
+        text = read_text(manifest, "an earlier run's manifest", missing_ok=True)  # a FIFO there: refused, no wait
+        data = json.loads(text) if text is not None else None
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, UserError):
+            raise
         return set()
     if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not isinstance(data.get("files"), dict):
         return set()
@@ -136,6 +158,9 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
     """
     root = output_dir(root, flag)
     rel = {Path(os.path.relpath(Path(root) / w, root)) for w in writes}
+    collision = tree_collision(rel)
+    if collision:
+        raise UserError(f"{root}: {flag}: {collision}; rename one")
     for r in sorted(rel):
         if r.parts[0] == "..":
             raise ValueError(f"{r}: not under {root}")
@@ -145,6 +170,8 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
                 raise UserError(f"{p}: {flag}: a file where the directory of {Path(root, r)} goes")
             if k == len(r.parts) and p.is_dir():
                 raise UserError(f"{p}: {flag}: a directory where this run writes a file")
+            if k == len(r.parts):
+                refuse_non_regular(p, flag)  # a FIFO, socket or device where this run writes a file
     if not root.is_dir():
         return root
     for d, dirs, _ in os.walk(root):
@@ -174,6 +201,22 @@ def run_dir(root: str | Path, flag: str, writes: Iterable[str | Path], manifest:
                         f"({', '.join(sorted(strangers)[:3])}{' ...' if len(strangers) > 3 else ''}): it holds one "
                         "run's files only; choose another directory or empty this one")
     return root
+
+
+def tree_collision(files: Iterable[str | os.PathLike]) -> str | None:
+    """Why a set of relative file paths cannot all be written in one tree (a file where another path needs a
+    directory; two names equal up to case, which one file on a case-insensitive file system), else None."""
+    paths = {Path(f) for f in files}
+    dirs = {p for f in paths for p in f.parents if p != Path(".")}
+    for f in sorted(paths & dirs):
+        inner = next(p for p in sorted(paths) if f in p.parents)
+        return f"{f} is written as a file and is also the directory of {inner}"
+    seen: dict[str, Path] = {}
+    for p in sorted(paths | dirs):
+        other = seen.setdefault(str(p).casefold(), p)
+        if other != p:
+            return f"{other} and {p} differ only in case (one file on a case-insensitive file system)"
+    return None
 
 
 def disk_error(exc: BaseException) -> str | None:
@@ -237,6 +280,8 @@ class RunOutputs:
         final = target(path)
         if final in self._entries:
             return Path(self._entries[final]["staged"])
+        refuse_non_regular(path, "output")  # every writer's last guard; commands check with output_file before work
+        interrupts.resume()  # new work after a commit: a signal that came after it stops the run here
         staging.clean_stale(final.parent)
         tmp = staging.temp_name(final, token=self.token)
         self._entries[final] = {"staged": tmp, "kind": "file", "old": None, "ready": ready}
@@ -246,6 +291,7 @@ class RunOutputs:
     def stage_dir(self, path: str | os.PathLike) -> Path:
         """A new empty directory that replaces the directory `path` (whole) at commit."""
         final = target(path)
+        interrupts.resume()
         final.parent.mkdir(parents=True, exist_ok=True)
         staging.clean_stale(final.parent)
         tmp = staging.temp_name(final, token=self.token, suffix="")
@@ -254,6 +300,13 @@ class RunOutputs:
         self._entries[final] = {"staged": tmp, "kind": "dir", "old": old, "ready": True}
         self._names[Path(path)] = final
         return tmp
+
+    def remove(self, path: str | os.PathLike) -> None:
+        """Remove the file `path` in the commit (an earlier output that belongs with the ones replaced now)."""
+        final = target(path)
+        if final not in self._entries:
+            refuse_non_regular(path, "output")
+            self._entries[final] = {"staged": None, "kind": "gone", "old": str(final.parent), "ready": True}
 
     def staged(self, path: str | os.PathLike) -> Path:
         """The temp that holds `path`'s new content until the commit."""
@@ -338,6 +391,8 @@ class RunOutputs:
                 self._entries.clear()  # the journal owns the staged files now: never removed, only renamed
                 try:
                     staging.apply_journal(journal)
+                except ValueError as exc:  # checked before any rename: nothing replaced, the staged files gone
+                    raise RunError(f"{first}: this run's outputs were not put in place ({exc})") from None
                 except OSError as exc:
                     raise RunError(f"{first}: renaming this run's outputs into place failed ({exc.strerror or exc}); "
                                    f"the next dvsot run in {journal.parent} completes it from {journal.name}") from None

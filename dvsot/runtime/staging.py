@@ -22,6 +22,7 @@ import re
 import secrets
 import shutil
 import socket
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -135,10 +136,53 @@ def _remove_gone(final: Path, root: Path) -> None:
         d = d.parent
 
 
+def journal_problem(journal: Path, data: dict) -> str | None:
+    """Why a journal's entries are not one run's staged outputs that can complete (a staged name of another run or
+    directory, something other than a regular file staged, a directory where a file goes), else None."""
+    m = _NAME.match(journal.name)
+    token = m["token"] if m else None
+    for e in data["entries"]:
+        final = Path(e["final"])
+        if e["kind"] == "gone":
+            continue
+        staged = Path(e["staged"])
+        n = _NAME.match(staged.name)
+        if n is None or n["token"] != token or n["kind"] != "tmp" or staged.parent != final.parent:
+            return f"{staged}: not a staged output of the run of {journal.name}"
+        if e["kind"] == "file":
+            if os.path.lexists(staged) and not stat.S_ISREG(os.lstat(staged).st_mode):
+                return f"{staged}: staged for {final.name}, but not a regular file"
+            if os.path.isdir(final) and not os.path.islink(final):
+                return f"{final}: a directory where the run's file goes"
+            if not os.path.lexists(staged) and not os.path.isfile(final):
+                return f"{final}: neither staged nor in place"
+        elif e["kind"] == "dir" and os.path.lexists(staged) and not os.path.isdir(staged):
+            return f"{staged}: staged for the directory {final.name}, but not a directory"
+    return None
+
+
+def discard_journal(journal: Path, data: dict) -> None:
+    """Drop a journal that cannot complete: its own staged files not yet renamed and its pointers go, no manifest
+    (a staged name of another run, live perhaps, is left alone)."""
+    m = _NAME.match(journal.name)
+    for e in data.get("entries", []):
+        n = _NAME.match(Path(e["staged"]).name) if e.get("staged") and e.get("kind") in ("file", "dir") else None
+        if m and n and n["token"] == m["token"] and n["pid"] == m["pid"] and n["kind"] == "tmp":
+            _remove(Path(e["staged"]))
+    for pointer in data.get("pointers", []):
+        Path(pointer).unlink(missing_ok=True)
+    journal.unlink(missing_ok=True)
+
+
 def apply_journal(journal: Path) -> None:
     """Complete the renames a journal names (each one done at most once), the removals of a previous run's files,
-    then the manifest, then drop the journal."""
+    then the manifest, then drop the journal. A journal whose entries are not its run's regular staged files (or
+    whose file would replace a directory) is never completed: it is discarded, and ValueError says why."""
     data = json.loads(journal.read_text())
+    problem = journal_problem(journal, data)
+    if problem:
+        discard_journal(journal, data)
+        raise ValueError(f"{journal.name}: not completed: {problem}")
     for e in data["entries"]:
         final = Path(e["final"])
         if e["kind"] == "gone":

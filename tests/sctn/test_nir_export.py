@@ -193,11 +193,15 @@ def test_a_failed_write_keeps_the_previous_file(tmp_path, monkeypatch):
     out = tmp_path / "sctn.nir"
     out.write_bytes(b"the previous export")
 
-    def full_disk(path, graph, **kwargs):
+    import sctn.nir_export as module
+
+    def full_disk(path, mode="r", *args, **kwargs):  # the graph, built in memory, written to a disk that fills up
+        if "w" not in mode:
+            return open(path, mode, *args, **kwargs)
         Path(path).write_bytes(b"half a file")
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(nir, "write", full_disk)
+    monkeypatch.setattr(module, "open", full_disk, raising=False)
     with pytest.raises(RunError, match="No space left on device"):
         export_nir(default_checkpoint_path(), out)
     assert out.read_bytes() == b"the previous export"

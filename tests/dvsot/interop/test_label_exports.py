@@ -41,7 +41,7 @@ def test_csv_export_has_the_object_column_and_table(tmp_path):
     rows = np.loadtxt(out, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
     assert out.read_text().splitlines()[0] == "t,x,y,p,object"
     assert np.array_equal(rows[:, 4], ev.object) and np.array_equal(rows[:, 0], ev.t)
-    with open(tmp_path / "l.objects.csv", newline="") as fh:
+    with open(tmp_path / "l.csv.objects.csv", newline="") as fh:
         got = list(csv.DictReader(fh))
     assert [(int(r["id"]), r["name"], r["role"]) for r in got] == [(r["id"], r["name"], r["role"]) for r in table]
     back = read_event_file(out, size=(W, H))  # the labelled CSV reads back as events
@@ -54,7 +54,7 @@ def test_unlabelled_csv_export_is_unchanged(tmp_path):
     src = _labelled(tmp_path / "u.h5", labels=False)
     paths = export_dataset(src, tmp_path / "u.csv")
     assert (tmp_path / "u.csv").read_text().splitlines()[0] == "t,x,y,p"
-    assert not (tmp_path / "u.objects.csv").exists() and len(paths) == 2
+    assert not (tmp_path / "u.csv.objects.csv").exists() and len(paths) == 2
 
 
 def test_torch_dataset_gives_labels_and_target_mask(tmp_path):

@@ -76,7 +76,7 @@ def test_export_refuses_a_directory_and_an_unknown_suffix(dataset, tmp_path, cap
 
 
 def test_export_refuses_a_boxes_file_that_is_its_input(dataset, tmp_path, capsys):
-    (tmp_path / "out.boxes.csv").symlink_to(dataset)
+    (tmp_path / "out.csv.boxes.csv").symlink_to(dataset)
     refused_both_ways(lambda: export_dataset(dataset, tmp_path / "out.csv"),
                       ["export", str(dataset), "-o", str(tmp_path / "out.csv")], "out_path", "-o", tmp_path, capsys)
 
@@ -101,6 +101,6 @@ def test_import_refuses_a_segment_length_out_of_range(events, tmp_path, capsys):
 
 def test_both_write_when_the_outputs_are_fine(dataset, events, tmp_path):
     written = export_dataset(dataset, tmp_path / "e.csv")
-    assert [p.name for p in written] == ["e.csv", "e.boxes.csv"] and all(p.is_file() for p in written)
+    assert [p.name for p in written] == ["e.csv", "e.csv.boxes.csv"] and all(p.is_file() for p in written)
     ev, boxes = events
     assert import_recording(ev, tmp_path / "r.h5", boxes=boxes, size=(32, 24)).is_file()
