@@ -12,7 +12,7 @@ import hashlib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from dvsot.defaults import SEGMENT_US
 from dvsot.events import EventParams
@@ -37,6 +37,20 @@ def _camera_mm_problem(value: float) -> str | None:
     if lo <= value <= hi:
         return None
     return f"must be between {lo:g} and {hi:.4g} mm (Blender's camera clamps it into that range), got {value:g}"
+
+
+class SceneEvents(EventParams):
+    """The scene file's `events:` block: EventParams with the file's strict number rules (no "0.2", no true)."""
+
+    model_config = ConfigDict(strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_flags(cls, value: object) -> object:
+        """No field of the block is a flag: true/false is refused also where a Literal of numbers would match it."""
+        if isinstance(value, bool):
+            raise ValueError(f"Input should be a number, not {str(value).lower()}")
+        return value
 
 
 class Sensor(Strict):
@@ -291,7 +305,7 @@ class SceneConfig(Strict):
     lights: list[Light] = [Light()]
     world: World = World()
     render: Render = Render()
-    events: EventParams = EventParams()
+    events: SceneEvents = SceneEvents()
     sampling: Sampling = Sampling()
 
     @model_validator(mode="after")
