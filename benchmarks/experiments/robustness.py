@@ -56,6 +56,9 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     params = EventParams.parse(values, "robustness variant")
     if seed is None:
         seed = int(attrs.get("event_seed", attrs.get("seed", 0)))
+    from dvsot.events.memory import check_memory
+
+    check_memory(params, width, height, float(np.diff(track.t).max()) if len(track.t) > 1 else 0.0, str(sequence))
     sim = EventSimulator(width, height, params, seed)
     out_attrs = {"name": attrs.get("name", Path(sequence).stem), "split": attrs.get("split", ""),
                  "source": str(frames_dir), "simulator": params.model_dump(), "event_seed": seed,

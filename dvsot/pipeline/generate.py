@@ -144,6 +144,9 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
     t_us = np.rint(times * 1e6).astype(np.int64)
     W, H = cfg.sensor.width, cfg.sensor.height
     params = cfg.events
+    from dvsot.events.memory import check_memory
+
+    check_memory(params, W, H, float(np.diff(t_us).max()) if len(t_us) > 1 else 0.0, cfg.name, render=True)
     sim = EventSimulator(W, H, params, cfg.derived_seed("events"))
     attrs = {"name": cfg.name, "split": cfg.split, "scene_yaml": scene_text,
              "scene_resolved": json.loads(cfg.model_dump_json()), "simulator": params.model_dump(),
