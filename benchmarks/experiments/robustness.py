@@ -6,9 +6,11 @@
 
 FRAMES_DIR holds the sequence's rendered luma frames (`dvsot generate SCENE --keep-frames FRAMES_DIR`: one
 NNNNNN.npy per render sample, linear intensity); SEQUENCE.h5 is the file that run wrote, whose /boxes hold
-the sample times and the ground truth. Each variant (every --preset, default ideal, times every
+the sample times and the ground truth, and the digest of the frames it was rendered from (frames of another
+sequence are refused before any work). Each variant (every --preset, default ideal, times every
 --noise-hz, the shot-noise rate in events per pixel per second that overrides the preset's, or the word
-`preset` for the preset's own; default: the preset's own) re-simulates the frames into OUT/NAME.h5 with
+`preset` for the preset's own; default: the preset's own; a value given twice is refused, and a rate is written
+in NAME exactly, e.g. _noise0.1234561) re-simulates the frames into OUT/NAME.h5 with
 each --event-seed (default: the sequence's own event seed; with several, NAME ends in _seedN), and every
 tracker runs on every variant (AR protocol). Written to OUT (default runs/robustness-<name>):
 robustness.csv (one row per variant and seed: preset, seed, set and measured noise rate, events, A, R,
@@ -112,7 +114,8 @@ def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | Non
 
     problem = file_kind_problem(frames_dir)
     if problem != "is a directory":
-        raise UserError(f"{frames_dir}: the kept frames are a directory; this {problem or 'is a file'}")
+        what = "no such directory" if problem == "no such file" else problem or "is a file"
+        raise UserError(f"{frames_dir}: {what}, not the directory of kept frames")
 
     if samples is None:
         from dvsot.dataset import Dataset
@@ -333,8 +336,8 @@ def noise_rate(text: str) -> float | None:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'") from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is >= 0 events per pixel per second")
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is finite and >= 0 events per pixel per second")
     return value
 
 
@@ -403,11 +406,12 @@ def _guarded(work) -> int:
     except RunError as exc:
         print(f"{prog}: failed: {exc}", file=sys.stderr)
         return 1
-    except OSError as exc:
+    except (OSError, RuntimeError) as exc:  # h5py words a full disk as a RuntimeError
         reason = disk_error(exc)
         if reason is None:
             raise
-        print(f"{prog}: failed: {exc.filename or 'an output'}: cannot write ({reason}); nothing was replaced",
+        print(f"{prog}: failed: {getattr(exc, 'filename', None) or 'an output'}: cannot write ({reason}); "
+              "nothing was replaced",
               file=sys.stderr)
         return 1
     except BaseException as caught:

@@ -313,7 +313,8 @@ def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_ve
             raise UserError(f"{path}: {problem}")
     if kind in ("evt", "dat") and header_size is None:
         stated = header_text_size(path)
-        problem = sensor_size_problem(*stated) if stated else None
+        problem = (sensor_size_problem(*stated) or (None if max(stated) < 1 << 16 else
+                   "faery, dvsot's reader of these files, holds at most 65535 pixels a side")) if stated else None
         if problem:  # faery's decoders read a size beyond 16 bits as none
             raise UserError(f"{path}: the {kind.upper()} header says {stated[0]}x{stated[1]} pixels: {problem}")
     if kind in ("evt", "dat") and header_size is None and size is None:
