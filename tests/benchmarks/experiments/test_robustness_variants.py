@@ -98,3 +98,19 @@ def test_a_refused_write_is_one_line_exit_1(tmp_path: Path, monkeypatch, capsys)
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "File too large" in lines[0]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.blender
+def test_generate_records_the_digest_of_the_frames_it_keeps(tmp_path: Path) -> None:
+    from dvsot.cli import main
+    from dvsot.dataset import Dataset
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR, FrameDigest
+
+    out, keep = tmp_path / "q.h5", tmp_path / "frames"
+    assert main(["generate", str(ROOT / "blender_scenes" / "quickstart.yaml"), "--resolution", "160x120",
+                 "--duration", "0.2", "--quiet", "-o", str(out), "--keep-frames", str(keep)]) == 0
+    digest = FrameDigest()
+    for f in sorted(keep.glob("*.npy")):
+        digest.update(np.load(f))
+    with Dataset(out) as ds:
+        assert ds.attrs[DIGEST_ATTR] == digest.hexdigest()
