@@ -16,7 +16,7 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from dvsot.defaults import SEGMENT_US
 from dvsot.events import EventParams
-from dvsot.strict import Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
+from dvsot.strict import Bool, Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
 
 # Sane ranges (dvsot.scene.checks has the checks that need the whole scene): coordinates within 1000 km
 # (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
@@ -251,10 +251,10 @@ class Render(Strict):
     samples: Int = Field(1, ge=1, le=4096)
     threads: Int = Field(0, ge=0, description="0 = all cores")
     max_bounces: Int = Field(2, ge=0, le=32)
-    persistent_data: bool = True
+    persistent_data: Bool = True
     amodal_mask: Literal["raster", "render"] = Field(
         "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
-    specular: bool = Field(
+    specular: Bool = Field(
         True, description="false: matte materials (no specular layer of the Principled BSDF); faster, duller look")
     shading: Literal["path", "direct"] = Field(
         "path", description="path: Cycles path tracing; direct: Lambert lighting from the suns and the world "

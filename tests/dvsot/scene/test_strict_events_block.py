@@ -28,3 +28,12 @@ def test_events_block_takes_numbers_and_an_int_for_a_float(tmp_path: Path) -> No
     path.write_text(MINIMAL_SCENE + "events: {cp: 1, cn: 0.3, lowpass_order: 1, lowpass_cutoff_hz: 200}\n")
     cfg = load_scene(path)
     assert (cfg.events.cp, cfg.events.cn, cfg.events.lowpass_order) == (1.0, 0.3, 1)
+
+
+@pytest.mark.parametrize("block, field", [('render: {specular: "false"}', "render.specular"),
+                                          ("render: {persistent_data: 0}", "render.persistent_data")])
+def test_render_flags_are_flags(tmp_path: Path, block: str, field: str) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(MINIMAL_SCENE + block + "\n")
+    with pytest.raises(UserError, match=rf"s\.yaml:\d+: field '{field}'"):
+        load_scene(path)
