@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Callable, Mapping
 
 import torch
+from pydantic import ValidationError
 
 from dvsot.core.errors import RunError, UserError, exception_line
 from dvsot.runtime.outputs import replacing, run_outputs
@@ -19,6 +20,7 @@ from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 DIGEST_KEY = "weights_sha256"  # the metadata field (in the .pt and its .json) holding weights_digest of the weights
+VERSIONS = (1,)  # the checkpoint layouts this code reads ("version" in the stored dict)
 
 
 class LegacyLayoutWarning(UserWarning):
@@ -143,9 +145,20 @@ def _zip_damage(p: Path) -> str | None:
         return None  # a damaged directory: torch.load refuses the file
 
 
-def _expected_digest(p: Path, meta: dict) -> str | None:
-    """The weights' digest a checkpoint states: in its metadata, else in the .json of the same run beside it."""
-    if isinstance(meta.get(DIGEST_KEY), str):
+def _digest_type_problem(value: object) -> str | None:
+    """Why a stored digest is no SHA-256 text (an integer, a list, ...), or None if it is text."""
+    if isinstance(value, str):
+        return None
+    return f"its {DIGEST_KEY} is {type(value).__name__} {str(value)[:40]}, expected 64 hexadecimal digits"
+
+
+def _expected_digest(p: Path, meta: dict, label: str = "SCTN") -> str | None:
+    """The weights' digest a checkpoint states: in its metadata, else in the .json of the same run beside it; a
+    digest of another type than text is a UserError (it is no digest to skip, but a damaged one)."""
+    if DIGEST_KEY in meta:
+        problem = _digest_type_problem(meta[DIGEST_KEY])
+        if problem:
+            raise UserError(f"{p}: damaged {label} checkpoint: {problem}")
         return meta[DIGEST_KEY]
     from dvsot.runtime.inputs import read_text
 
@@ -156,7 +169,10 @@ def _expected_digest(p: Path, meta: dict) -> str | None:
         if isinstance(exc, UserError):
             raise
         return None
-    if isinstance(side, dict) and side.get("run") == meta.get("run") and isinstance(side.get(DIGEST_KEY), str):
+    if isinstance(side, dict) and side.get("run") == meta.get("run") and DIGEST_KEY in side:
+        problem = _digest_type_problem(side[DIGEST_KEY])
+        if problem:
+            raise UserError(f"{metadata_path(p)}: damaged metadata of {p.name}: {problem}")
         return side[DIGEST_KEY]
     return None
 
@@ -168,7 +184,7 @@ def check_weights(p: Path, blob: dict, label: str) -> None:
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
         raise UserError(f"{p}: not a usable {label} checkpoint (its state_dict is not a set of tensors)")
     meta = blob.get("meta") if isinstance(blob.get("meta"), dict) else {}
-    expected = _expected_digest(p, meta)
+    expected = _expected_digest(p, meta, label)
     if expected is not None and weights_digest(state) != expected:
         raise UserError(f"{p}: damaged {label} checkpoint: its weights do not match their {DIGEST_KEY} digest")
     bad = non_finite_weights(state)
@@ -202,6 +218,10 @@ def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str
         if held:
             raise UserError(f"{p}: holds a {held} model, not {article} {label} one (a checkpoint of the {held} tracker)")
         raise UserError(f"{p}: not {article} {label} checkpoint")
+    version = blob.get("version")
+    if isinstance(version, bool) or version not in VERSIONS:
+        raise UserError(f"{p}: {label} checkpoint version {str(version)[:40]} is not one this dvsot reads "
+                        f"({', '.join(map(str, VERSIONS))})")
     check_weights(p, blob, label)
     return blob
 
@@ -238,7 +258,13 @@ def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
     config = dict(blob["config"])
     if "bias" not in config:  # written before the layers' bias became a setting: biased if it has bias tensors
         config["bias"] = any(k.endswith(".bias") for k in blob["state_dict"])
-    cfg = NetworkConfig(**config)
+    try:
+        cfg = NetworkConfig(**config)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = ".".join(map(str, err["loc"])) or "config"
+        raise UserError(f"{p}: not a usable SCTN checkpoint: config field '{field}' is {str(err.get('input'))[:40]} "
+                        f"({err['msg'][:1].lower()}{err['msg'][1:]})") from None
     note = layout_note(cfg)
     if note:
         warnings.warn(f"{p}: {note}", LegacyLayoutWarning, stacklevel=2)
@@ -249,5 +275,31 @@ def load_checkpoint(path: str | os.PathLike | None = None) -> tuple[SCTN, dict]:
         warnings.warn(f"{p}: {rule}", TrainingRuleWarning, stacklevel=2)
     model = SCTN(cfg)
     model.load_state_dict(blob["state_dict"])
+    problem = time_constant_problem(model)
+    if problem:
+        raise UserError(f"{p}: not a usable SCTN checkpoint: {problem}")
     model.eval()
     return model, blob.get("meta", {})
+
+
+def time_constant_problem(model: SCTN) -> str | None:
+    """Why a network's learned C-LIF time constants (ms) give no finite kernel, or None.
+
+    The kernel's decays d = exp(-1/a) and its norm V0 are computed in float32 (tracking) and float64 (NIR export):
+    a finite but huge time constant makes d_m and d_s equal, V0 infinite and the exported constants NaN."""
+    from sctn.neurons import kernel_norm
+
+    with torch.no_grad():
+        for i, neuron in enumerate(model.neurons):
+            a_m, a_s = (t.detach() for t in neuron.time_constants())
+            for dtype in (torch.float32, torch.float64):
+                am, as_ = a_m.to(dtype), a_s.to(dtype)
+                d_m, d_s = torch.exp(-1.0 / am), torch.exp(-1.0 / as_)
+                v0 = kernel_norm(d_m, d_s, am, as_)
+                bad = ~(torch.isfinite(am) & torch.isfinite(as_) & torch.isfinite(v0) & (v0 > 0) & (d_m > d_s))
+                if bool(bad.any()):
+                    c = int(torch.nonzero(bad)[0])
+                    return (f"C-LIF layer {i} channel {c} has time constants alpha_m {float(a_m[c]):.6g} ms and "
+                            f"alpha_s {float(a_s[c]):.6g} ms, whose PSP kernel is not finite in {str(dtype)[6:]} "
+                            "(its decays per step are equal)")
+    return None

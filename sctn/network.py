@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 from torch.nn import functional as F
 
@@ -43,9 +43,9 @@ class NetworkConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     input_size: int = 107
-    steps: int = 10
-    step_us: int = 1000
-    tail_steps: int = 0
+    steps: int = Field(10, ge=1)  # the time steps of one sample: none would score nothing
+    step_us: int = Field(1000, ge=1)
+    tail_steps: int = Field(0, ge=0)
     bias: bool = False
     channels: tuple[int, int, int] = (8, 16, 16)
     kernels: tuple[int, int, int] = (4, 3, 3)

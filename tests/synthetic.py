@@ -115,6 +115,11 @@ def kept_sequence(directory: Path, width: int = 96, height: int = 72, n: int = 4
     attrs = {"name": name, "split": split, "event_seed": 3}
     if record_settings:
         attrs["simulator"] = params.model_dump()
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR, FrameDigest
+
+    digest = FrameDigest()
+    for f in frames:
+        digest.update(f)
     path, _ = write_sequence(Path(directory) / f"{name}.h5", frames, t_us, sim, attrs, 10_000,
-                             boxes=lambda: (t_us, box, box))
+                             boxes=lambda: (t_us, box, box), final_attrs=lambda: {DIGEST_ATTR: digest.hexdigest()})
     return path, frames_dir

@@ -6,9 +6,11 @@
 
 FRAMES_DIR holds the sequence's rendered luma frames (`dvsot generate SCENE --keep-frames FRAMES_DIR`: one
 NNNNNN.npy per render sample, linear intensity); SEQUENCE.h5 is the file that run wrote, whose /boxes hold
-the sample times and the ground truth. Each variant (every --preset, default ideal, times every
+the sample times and the ground truth, and the digest of the frames it was rendered from (frames of another
+sequence are refused before any work). Each variant (every --preset, default ideal, times every
 --noise-hz, the shot-noise rate in events per pixel per second that overrides the preset's, or the word
-`preset` for the preset's own; default: the preset's own) re-simulates the frames into OUT/NAME.h5 with
+`preset` for the preset's own; default: the preset's own; a value given twice is refused, and a rate is written
+in NAME exactly, e.g. _noise0.1234561) re-simulates the frames into OUT/NAME.h5 with
 each --event-seed (default: the sequence's own event seed; with several, NAME ends in _seedN), and every
 tracker runs on every variant (AR protocol). Written to OUT (default runs/robustness-<name>):
 robustness.csv (one row per variant and seed: preset, seed, set and measured noise rate, events, A, R,
@@ -44,21 +46,37 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     from dvsot.dataset import Dataset
     from dvsot.events import EventParams, EventSimulator
     from dvsot.pipeline.sequence import write_sequence
+    from dvsot.core.errors import UserError
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest, frames_problem, load_frame
     from dvsot.runtime.outputs import readable
 
     with Dataset(sequence) as ds:
         track, attrs = ds.boxes(), dict(ds.attrs)
         width, height, segment_us, duration_us = ds.width, ds.height, ds.segment_us, ds.duration_us
     files = kept_frames(sequence, frames_dir, len(track.t))
+    recorded = attrs.get(KEPT_DIGEST_ATTR)
     params = EventParams.parse(values, "robustness variant")
     if seed is None:
         seed = int(attrs.get("event_seed", attrs.get("seed", 0)))
+    from dvsot.events.memory import check_memory
+
+    check_memory(params, width, height, float(np.diff(track.t).max()) if len(track.t) > 1 else 0.0, str(sequence))
     sim = EventSimulator(width, height, params, seed)
     out_attrs = {"name": attrs.get("name", Path(sequence).stem), "split": attrs.get("split", ""),
                  "source": str(frames_dir), "simulator": params.model_dump(), "event_seed": seed,
                  "generator": "benchmarks.experiments.robustness"}
-    frames = (np.load(f) for f in files)
-    path, counts = write_sequence(output, frames, track.t, sim, out_attrs, segment_us, source=str(frames_dir),
+    digest = FrameDigest()
+
+    def frames():
+        """Each kept frame in turn; at the end, UserError unless they are the frames the sequence recorded."""
+        for f in files:
+            frame = load_frame(f)
+            digest.update(frame)
+            yield frame
+        if recorded is not None and digest.hexdigest() != recorded:  # before the file is renamed into place
+            raise UserError(f"{frames_dir}: {frames_problem(files, recorded)} of {sequence}")
+
+    path, counts = write_sequence(output, frames(), track.t, sim, out_attrs, segment_us, source=str(frames_dir),
                                   boxes=lambda: (track.t, track.xywh, track.xywh_visible))
     noise = 0
     with Dataset(readable(path)) as ds:  # inside a run: the staged file, renamed into place at the run's end
@@ -69,10 +87,35 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
             "duration_s": seconds, "seed": seed}
 
 
+def check_frames(sequence: str | Path, frames_dir: str | Path) -> list[Path]:
+    """The kept frames of a sequence, checked before any work: one per render sample, each a numeric frame, and
+    together the frames whose digest the sequence recorded (files written before the digest: not checkable)."""
+    from dvsot.dataset import Dataset
+    from dvsot.core.errors import UserError
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, frames_problem
+
+    with Dataset(sequence) as ds:
+        samples, recorded = len(ds.boxes().t), ds.attrs.get(KEPT_DIGEST_ATTR)
+    files = kept_frames(sequence, frames_dir, samples)
+    if recorded is not None and not isinstance(recorded, str):
+        raise UserError(f"{sequence}: root attribute '{KEPT_DIGEST_ATTR}' is {type(recorded).__name__}, "
+                        "expected a SHA-256 as text")
+    problem = frames_problem(files, recorded)
+    if problem:
+        raise UserError(f"{frames_dir}: {problem} of {sequence}")
+    return files
+
+
 def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | None = None) -> list[Path]:
     """The kept frames of a sequence (FRAMES_DIR/NNNNNN.npy, in order); UserError unless there is one per render
     sample of the sequence (`samples`, else read from its /boxes)."""
     from dvsot.core.errors import UserError
+    from dvsot.core.bounds import file_kind_problem
+
+    problem = file_kind_problem(frames_dir)
+    if problem != "is a directory":
+        what = "no such directory" if problem == "no such file" else problem or "is a file"
+        raise UserError(f"{frames_dir}: {what}, not the directory of kept frames")
 
     if samples is None:
         from dvsot.dataset import Dataset
@@ -87,14 +130,37 @@ def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | Non
     return files
 
 
+def exact_number(value: float) -> str:
+    """A float as short text that reads back as the same float ('200', '0.1234561', '1e-07'), for names."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(float(value))
+
+
 def variant_name(preset: str, rate: float | None) -> str:
-    """A variant's name: the preset, with _noiseR when a shot-noise rate overrides the preset's."""
-    return preset if rate is None else f"{preset}_noise{rate:g}"
+    """A variant's name: the preset, with _noiseR when a shot-noise rate overrides the preset's (R exact)."""
+    return preset if rate is None else f"{preset}_noise{exact_number(rate)}"
+
+
+def _no_repeats(flag: str, values: list | None) -> None:
+    """UserError naming the flag if a value is given twice: two variants would be one file and one table row."""
+    from dvsot.core.errors import UserError
+
+    seen = set()
+    for v in values or []:
+        if v in seen:
+            shown = "preset" if v is None else v if isinstance(v, str) else exact_number(v) if isinstance(v, float) \
+                else str(v)
+            raise UserError(f"{flag}: {shown} is given twice; each variant is run once")
+        seen.add(v)
 
 
 def variants(presets: list[str], noise_hz: list[float | None] | None,
              seeds: list[int] | None) -> list[tuple[str, str, float | None, int | None, str]]:
     """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep order."""
+    from dvsot.core.errors import UserError
+
+    for flag, values in (("--preset", presets), ("--noise-hz", noise_hz), ("--event-seed", seeds)):
+        _no_repeats(flag, values)
     out = []
     for preset in presets:
         for rate in (noise_hz if noise_hz else [None]):
@@ -102,6 +168,11 @@ def variants(presets: list[str], noise_hz: list[float | None] | None,
             for seed in (seeds if seeds else [None]):
                 out.append((name, preset, rate, seed,
                             f"{name}.h5" if seed is None or len(seeds) == 1 else f"{name}_seed{seed}.h5"))
+    files: dict[str, str] = {}
+    for name, _, _, _, file_name in out:  # names differ in case only: one file on a case-folding disk
+        other = files.setdefault(file_name.casefold(), file_name)
+        if other != file_name or sum(v[-1] == file_name for v in out) > 1:
+            raise UserError(f"variants {other!r} and {file_name!r} would write one file; give each variant once")
     return out
 
 
@@ -152,6 +223,8 @@ def run(sequence: str | Path, frames_dir: str | Path, trackers: list[str], prese
     from dvsot.runtime.outputs import owned_run, readable
 
     out = Path(out_dir)
+    output_names(presets, noise_hz, seeds, picture_segment is not None)  # repeated variants: refused before work
+    check_frames(sequence, frames_dir)
     with owned_run(out, "--out", output_names(presets, noise_hz, seeds, picture_segment is not None), MANIFEST):
         rows = sweep(sequence, frames_dir, trackers, presets, noise_hz, out, max_segments, jobs, seeds)
         write_outputs(rows, trackers, out, Path(sequence).stem)
@@ -265,8 +338,8 @@ def noise_rate(text: str) -> float | None:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'") from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is >= 0 events per pixel per second")
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is finite and >= 0 events per pixel per second")
     return value
 
 
@@ -295,18 +368,70 @@ def main() -> None:
     parser.add_argument("--max-segments", type=int)
     parser.add_argument("--jobs", type=int, default=1)
     args = parser.parse_args()
-    from dvsot.core.errors import UserError
+    status = _guarded(lambda: _main(args))
+    if status:
+        raise SystemExit(status)
 
-    try:
-        if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run
-            check_segment(args.sequence, args.picture_segment, "--picture-segment")
-        out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
-        run(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
-            args.max_segments, args.jobs, args.event_seed, args.picture_segment)
-    except UserError as exc:  # one line, exit 2, as dvsot's commands do
-        print(f"benchmarks.experiments.robustness: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+
+def _main(args: argparse.Namespace) -> None:
+    """The sweep the parsed flags ask for, its table printed."""
+    if args.picture_segment is not None:  # checked before the sweep: a bad segment wastes no run
+        check_segment(args.sequence, args.picture_segment, "--picture-segment")
+    out = Path(args.out or f"runs/robustness-{Path(args.sequence).stem}-{time.strftime('%Y%m%d-%H%M%S')}")
+    run(args.sequence, args.frames, args.tracker, args.preset or ["ideal"], args.noise_hz, out,
+        args.max_segments, args.jobs, args.event_seed, args.picture_segment)
     print((out / "robustness.md").read_text())
+
+
+def _guarded(work) -> int:
+    """Run work() as dvsot's commands run: bad input one line and 2, a refused write one line and 1, SIGINT and
+    SIGTERM one line and 128 + the signal (the run's staged files removed as the exception unwinds), a signal
+    after the final renames reported as such with the run's own status."""
+    import signal
+
+    from dvsot.core.errors import RunError, UserError
+    from dvsot.runtime import interrupts
+    from dvsot.runtime.outputs import disk_error
+
+    prog = "benchmarks.experiments.robustness"
+    saved = interrupts.install()
+    interrupted = False
+    try:
+        work()
+        if interrupts.late():
+            print(f"{prog}: done; {signal.Signals(interrupts.late()).name} arrived after its outputs were written",
+                  file=sys.stderr)
+        return 0
+    except UserError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"{prog}: failed: {exc}", file=sys.stderr)
+        return 1
+    except (OSError, RuntimeError) as exc:  # h5py words a full disk as a RuntimeError
+        reason = disk_error(exc)
+        if reason is None:
+            raise
+        print(f"{prog}: failed: {getattr(exc, 'filename', None) or 'an output'}: cannot write ({reason}); "
+              "nothing was replaced",
+              file=sys.stderr)
+        return 1
+    except BaseException as caught:
+        if isinstance(caught, SystemExit):
+            raise
+        exc = interrupts.interruption(caught)
+        if exc is None and interrupts.seen():
+            exc = interrupts.Interrupted(interrupts.seen())
+        if exc is None:
+            raise
+        why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
+        print(f"{prog}: interrupted ({why})", file=sys.stderr)
+        interrupted = True
+        return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
+    finally:
+        interrupts.restore(saved)
+        if interrupted:
+            interrupts.quiet_exit()
 
 
 if __name__ == "__main__":

@@ -158,6 +158,65 @@ def times_problem(t: np.ndarray, t0_us: int, t1_us: int, first: int, source: str
     return None
 
 
+# a rendered visible box may overhang its amodal box by the index pass's pixel filter (dvsot.dataset.boxes.
+# mask_visibility): a pixel at most, so two pixels are a crafted or corrupted box
+VISIBLE_INSIDE_TOL_PX = 2.0
+
+
+def _inside_problem(name: str, amodal: np.ndarray, visible: np.ndarray) -> str | None:
+    """What is wrong if a visible box (N, 4 xywh px) lies outside its amodal box beyond the tolerance, or None."""
+    a, v = np.asarray(amodal, np.float64), np.asarray(visible, np.float64)
+    both = np.isfinite(a).all(axis=1) & np.isfinite(v).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        out = both & ((v[:, 0] < a[:, 0] - VISIBLE_INSIDE_TOL_PX) | (v[:, 1] < a[:, 1] - VISIBLE_INSIDE_TOL_PX)
+                      | (v[:, 0] + v[:, 2] > a[:, 0] + a[:, 2] + VISIBLE_INSIDE_TOL_PX)
+                      | (v[:, 1] + v[:, 3] > a[:, 1] + a[:, 3] + VISIBLE_INSIDE_TOL_PX))
+    if not out.any():
+        return None
+    i = int(np.flatnonzero(out)[0])
+    fmt = lambda b: "x={:g} y={:g} w={:g} h={:g}".format(*b)  # noqa: E731
+    return (f"/{name}_visible row {i} ({fmt(v[i])}) lies outside the amodal box /{name} ({fmt(a[i])}) by more "
+            f"than {VISIBLE_INSIDE_TOL_PX:g} px: the visible part of the target is part of the target")
+
+
+def truth_problem(f: h5py.File, load) -> str | None:
+    """What is wrong between a file's ground-truth tables (load(name) reads one), or None: /segments/t increasing;
+    visible boxes inside their amodal boxes; a visible box only where visibility > 0; /segments/absent exactly
+    where a segment's amodal or visible box is missing (dvsot.dataset.segment_truth.absent_at)."""
+    seg_t = load("segments/t")
+    down = np.flatnonzero(seg_t[1:] <= seg_t[:-1])
+    if len(down):
+        i = int(down[0]) + 1
+        return (f"/segments/t is {int(seg_t[i])} us at segment {i}, not after segment {i - 1}'s {int(seg_t[i - 1])} us; "
+                "segment end times increase")
+    for group in ("boxes", "segments"):
+        if f"{group}/xywh_visible" not in f:
+            continue
+        amodal, visible = load(f"{group}/xywh"), load(f"{group}/xywh_visible")
+        problem = _inside_problem(f"{group}/xywh", amodal, visible)
+        if problem:
+            return problem
+        if f"{group}/visibility" in f:
+            vis = load(f"{group}/visibility")
+            seen = (np.isfinite(np.asarray(visible, np.float64)).all(axis=1)
+                    & np.isfinite(np.asarray(amodal, np.float64)).all(axis=1))
+            bad = np.flatnonzero(seen & (vis == 0))
+            if len(bad):
+                return (f"/{group}/visibility is 0 at row {int(bad[0])}, beside a visible box in "
+                        f"/{group}/xywh_visible: nothing visible has no visible box")
+    if "segments/absent" in f and "segments/xywh_visible" in f:
+        absent = load("segments/absent").astype(np.int64)
+        missing = (np.isnan(np.asarray(load("segments/xywh"), np.float64)).any(axis=1)
+                   | np.isnan(np.asarray(load("segments/xywh_visible"), np.float64)).any(axis=1))
+        bad = np.flatnonzero((absent == 1) != missing)
+        if len(bad):
+            i = int(bad[0])
+            return (f"/segments/absent is {int(absent[i])} at segment {i}, but its boxes are "
+                    + ("missing" if missing[i] else "both there") + " (absent is 1 exactly where the amodal or the "
+                    "visible box is missing)")
+    return None
+
+
 def columns_problem(columns: dict[str, np.ndarray], limits: dict[str, tuple[int, str]], first: int) -> str | None:
     """What is wrong with event columns whose values must lie in [0, limit) (limits: name -> (limit, why)), or None."""
     for name, values in columns.items():

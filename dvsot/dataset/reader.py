@@ -16,7 +16,8 @@ from dvsot.dataset.boxes import box_problem
 from dvsot.dataset.digest import DIGEST_ATTR, digest_problem
 from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
 from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem)
+                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem,
+                                      truth_problem)
 from dvsot.core.errors import UserError, exception_line
 from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
@@ -114,14 +115,19 @@ class Dataset:
                     raise Damaged(f"/{name} holds values outside 0..1")
             self._seg_visibility = self._load("segments/visibility").astype(np.float32)
             self._seg_absent = self._load("segments/absent")
-            if np.any(self._seg_absent > 1):
-                raise Damaged("/segments/absent holds values other than 0 and 1")
+            bad = np.flatnonzero((self._seg_absent != 0) & (self._seg_absent != 1))
+            if len(bad):
+                raise Damaged(f"/segments/absent holds {self._seg_absent[bad[0]]} at segment {int(bad[0])}, "
+                              "expected 0 or 1")
             self._seg_absent = self._seg_absent.astype(bool)
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
             problem = None if rows is None else box_problem(rows, self.width, self.height)
             if problem:
                 raise Damaged(f"/{name} {problem}")
+        problem = truth_problem(f, self._load)
+        if problem:
+            raise Damaged(problem)
         problem = digest_problem(self.attrs)
         if problem:
             raise Damaged(problem)
@@ -147,10 +153,11 @@ class Dataset:
         if self._has_object != ("objects" in f):
             raise Damaged("/events/object without /objects" if self._has_object else "/objects without /events/object")
         self.objects: list[dict] | None = None
+        self.target_id: int | None = None  # the id of the object table's target row
         self._object_counts: np.ndarray | None = None
         if not self._has_object:
             return
-        from dvsot.events.labels import table_problem
+        from dvsot.events.labels import table_problem, target_id
 
         for name in ("objects/id", "objects/name", "objects/role"):
             if name not in f:
@@ -163,6 +170,7 @@ class Dataset:
         if problem:
             raise Damaged(problem)
         self.objects = [{"id": int(i), "name": n, "role": r} for i, n, r in zip(ids, names, roles)]
+        self.target_id = target_id(self.objects)
         self._known_ids = np.zeros(256, bool)
         self._known_ids[ids] = True
         counts = np.zeros(256, np.int64)

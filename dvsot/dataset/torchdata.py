@@ -102,7 +102,7 @@ class SegmentDataset:
             box = self.target_transform(box)
         if not self.labels:
             return events, box
-        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height)
+        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height, ds.target_id)
 
     def close(self) -> None:
         """Close the files this process opened."""
@@ -112,12 +112,11 @@ class SegmentDataset:
         self._open = {}
 
 
-def target_mask(events, width: int, height: int) -> np.ndarray:
-    """bool (height, width): the pixels where at least one of the events (an EventBatch with labels) is the target's."""
-    from dvsot.events.labels import TARGET_ID
-
+def target_mask(events, width: int, height: int, target_id: int) -> np.ndarray:
+    """bool (height, width): the pixels where at least one of the events (an EventBatch with labels) is the target's
+    (target_id: the id the file's object table gives the role 'target', Dataset.target_id)."""
     mask = np.zeros((height, width), bool)
-    hit = events.object == TARGET_ID
+    hit = events.object == target_id
     mask[events.y[hit], events.x[hit]] = True
     return mask
 

@@ -73,7 +73,16 @@ def table_problem(ids: np.ndarray, names: Sequence[str], roles: Sequence[str]) -
     bad = [r for r in roles if r not in ROLES]
     if bad:
         return f"/objects/role holds {bad[0]!r}, expected one of {', '.join(ROLES)}"
+    targets = [int(i) for i, r in zip(ids, roles) if r == "target"]
+    if len(targets) != 1:  # the target's events are the ones a tracker is trained and scored on
+        return (f"/objects/role names {len(targets)} targets" + (f" (ids {', '.join(map(str, targets))})"
+                if targets else "") + ", expected exactly one row with role 'target'")
     return None
+
+
+def target_id(table: Sequence[dict]) -> int:
+    """The id of an object table's one row with role 'target' (the table is checked: table_problem)."""
+    return next(int(row["id"]) for row in table if row["role"] == "target")
 
 
 def label_frames(before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

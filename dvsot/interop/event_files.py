@@ -168,6 +168,122 @@ def evt3_time_problem(path: str | os.PathLike, words_per_chunk: int = 1 << 24) -
     return None
 
 
+def _first_step_back(t: np.ndarray, last: int, period: int) -> int | None:
+    """Index in t (us, wrapping at `period`) of the first time earlier than the one before it (`last` before t[0]).
+
+    A step back of more than half the period is the clock wrapping, which the readers count forward."""
+    d = np.diff(np.concatenate([[last], t]).astype(np.int64))
+    bad = np.flatnonzero((d < 0) & (-d <= period // 2))
+    return int(bad[0]) if len(bad) else None
+
+
+def raw_time_problem(path: str | os.PathLike, kind: str, evt_version: str | None,
+                     chunk: int = 1 << 22) -> str | None:
+    """Why a DAT, EVT 2 or EVT 3 file's stored times are out of order or its last record is cut (one line), or None.
+
+    faery clamps a time that steps back to the time before it, so the events would be stored at times the file
+    does not hold: the raw words are read here. Events are named by their index among the file's events (DAT,
+    EVT 2) or by their 16-bit word (EVT 3, whose events carry no time of their own)."""
+    p = Path(path)
+    start = _header_bytes(p)
+    size = p.stat().st_size
+    if kind == "dat":
+        if size < start + 2:
+            return None  # faery's header check names a file with no event type
+        with open(p, "rb") as fh:
+            fh.seek(start)
+            record = fh.read(2)[1]
+        body = size - start - 2
+        if record < 4:
+            return f"the DAT header gives events of {record} bytes; expected at least 4"
+        if body % record:
+            return (f"the file ends {body % record} bytes into event {body // record} (events of {record} bytes): "
+                    "the file is truncated")
+        words = np.memmap(p, dtype="<u4", mode="r", offset=start + 2, shape=(body // 4,)) if body else np.empty(0)
+        last, step = -1, record // 4 if record % 4 == 0 else None
+        if step is None:
+            return f"the DAT header gives events of {record} bytes; expected a multiple of 4"
+        for i in range(0, body // record, chunk):
+            t = np.asarray(words[i * step:(i + chunk) * step:step], np.int64)
+            k = _first_step_back(t, last if last >= 0 else int(t[0]) if len(t) else 0, 1 << 32)
+            if k is not None:
+                prev = last if k == 0 else int(t[k - 1])
+                return (f"event {i + k}: its stored time ({int(t[k])} us after the header's T0) is earlier than "
+                        f"the event before it ({prev} us); events must be in time order")
+            if len(t):
+                last = int(t[-1])
+        return None
+    if evt_version not in EVT_VERSIONS:
+        return None  # EVT 2.1 (64-bit words) is read as faery reads it
+    unit = 4 if evt_version == "evt2" else 2
+    if (size - start) % unit:
+        return f"the file ends {(size - start) % unit} bytes into a {unit * 8}-bit word: the file is truncated"
+    count = (size - start) // unit
+    if not count:
+        return None
+    words = np.memmap(p, dtype="<u4" if unit == 4 else "<u2", mode="r", offset=start, shape=(count,))
+    high, last, seen = 0, -1, 0  # the time-high in force, the last event time, events before this chunk
+    for i in range(0, count, chunk):
+        w = np.asarray(words[i:i + chunk]).astype(np.int64)
+        if unit == 4:  # EVT 2: a 28-bit time-high word (type 8); CD events (types 0, 1) carry 6 low bits
+            kind_of = w >> 28
+            marks = kind_of == 8
+            values = w & 0xFFFFFFF
+            events = (kind_of == 0) | (kind_of == 1)
+            low = (w >> 22) & 63
+            shift, period = 6, 1 << 34
+        else:  # EVT 3: time-high (type 8) and time-low (type 6) words, 12 bits each; name the time-low words
+            kind_of = w >> 12
+            marks = kind_of == 8
+            values = w & 0xFFF
+            events = kind_of == 6
+            low = w & 0xFFF
+            shift, period = 12, 1 << 24
+        idx = np.where(marks, np.arange(len(w)), -1)
+        np.maximum.accumulate(idx, out=idx)
+        current = np.where(idx >= 0, values[np.maximum(idx, 0)], high)
+        where = np.flatnonzero(events)
+        t = (current[where] << shift) | low[where]
+        k = _first_step_back(t, last if last >= 0 else int(t[0]) if len(t) else 0, period)
+        if k is not None:
+            prev = last if k == 0 else int(t[k - 1])
+            name = f"event {seen + k}" if unit == 4 else f"time-low word {i + int(where[k])}"
+            return (f"{name}: its stored time ({int(t[k])} us after the header's t0) is earlier than the event "
+                    f"before it ({prev} us); events must be in time order")
+        if len(t):
+            last = int(t[-1])
+        if marks.any():
+            high = int(values[np.flatnonzero(marks)[-1]])
+        seen += len(where)
+    return None
+
+
+_SIZE_WORDS = (b"width", b"height")
+
+
+def header_text_size(path: str | os.PathLike) -> tuple[int, int] | None:
+    """(width, height) a Prophesee header's text states ('% Width N', 'width=N', '% geometry WxH'), or None."""
+    import re
+
+    found: dict[bytes, int] = {}
+    with open(path, "rb") as fh:
+        for line in fh:
+            if not line.startswith(b"%"):
+                break
+            low = line.lower()
+            m = re.search(rb"geometry\s+(\d+)\s*x\s*(\d+)", low)
+            if m:
+                found.setdefault(b"width", int(m[1]))
+                found.setdefault(b"height", int(m[2]))
+            for word in _SIZE_WORDS:
+                m = re.search(word + rb"(?:\s+|\s*=\s*)(\d+)", low)
+                if m:
+                    found.setdefault(word, int(m[1]))
+    if len(found) < 2:
+        return None
+    return found[b"width"], found[b"height"]
+
+
 def _dat_2d_events(path: Path, size: tuple[int, int]) -> np.ndarray:
     """The events of a DAT file of type 0x00 ("2D", as expelliarmus writes): the CD layout, polarity in the payload."""
     from faery.extension import dat
@@ -192,6 +308,16 @@ def _read_with_faery(path: Path, kind: str, size: tuple[int, int] | None, evt_ve
         problem = evt3_time_problem(path)
         if problem:
             raise UserError(f"{path}: {problem}")
+    if kind in ("evt", "dat"):
+        problem = raw_time_problem(path, kind, event_type if kind == "evt" else None)
+        if problem:
+            raise UserError(f"{path}: {problem}")
+    if kind in ("evt", "dat") and header_size is None:
+        stated = header_text_size(path)
+        problem = (sensor_size_problem(*stated) or (None if max(stated) < 1 << 16 else
+                   "faery, dvsot's reader of these files, holds at most 65535 pixels a side")) if stated else None
+        if problem:  # faery's decoders read a size beyond 16 bits as none
+            raise UserError(f"{path}: the {kind.upper()} header says {stated[0]}x{stated[1]} pixels: {problem}")
     if kind in ("evt", "dat") and header_size is None and size is None:
         raise UserError(f"{path}: the {kind.upper()} header gives no sensor size; give {size_label} WIDTHxHEIGHT")
     if header_size is not None and size is not None and header_size != tuple(size):

@@ -191,10 +191,10 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
     if box_times and box_times_from_frames:
         raise UserError(f"{box_times}: give annotation times either as a file ({label('box_times', labels)}) or "
                         f"from the frame track ({label('box_times_from_frames', labels)}), not both")
-    ev = read_event_file(events, size, evt_version, label("size", labels), header)
     if (box_times or absent or box_times_from_frames) and not boxes:
         raise UserError(f"{box_times or absent or events}: annotation times and absent flags need a box file "
                         f"({label('boxes', labels)})")
+    ev = read_event_file(events, size, evt_version, label("size", labels), header)
     track, box_t = None, None
     if boxes:
         track = read_box_file(boxes, ev.width, ev.height)

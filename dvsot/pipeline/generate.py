@@ -18,6 +18,7 @@ from dvsot.scene import SceneConfig
 from dvsot.dataset.format import attrs_problem
 from dvsot.core.errors import UserError
 from dvsot.events.labels import LabelledFrame, object_table
+from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest
 from dvsot.events import EventSimulator
 from dvsot.runtime.outputs import run_outputs, writing
 from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times
@@ -143,6 +144,9 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
     t_us = np.rint(times * 1e6).astype(np.int64)
     W, H = cfg.sensor.width, cfg.sensor.height
     params = cfg.events
+    from dvsot.events.memory import check_memory
+
+    check_memory(params, W, H, float(np.diff(t_us).max()) if len(t_us) > 1 else 0.0, cfg.name, render=True)
     sim = EventSimulator(W, H, params, cfg.derived_seed("events"))
     attrs = {"name": cfg.name, "split": cfg.split, "scene_yaml": scene_text,
              "scene_resolved": json.loads(cfg.model_dump_json()), "simulator": params.model_dump(),
@@ -158,6 +162,7 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
     # are only recorded while Blender runs and raised between frames; the outputs are then never renamed.
     with run_outputs(run_manifest(out_path) if keep_frames else None) as run, interrupts.deferred():
         keep = None
+        kept = FrameDigest()  # recorded in the file: tools given these frames check they belong to it
         if keep_frames:
             check_keep_frames(keep_frames, "keep_frames")
             keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
@@ -178,6 +183,7 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                     if keep:
                         with writing(keep_frames):  # a full disk: one line naming --keep-frames
                             np.save(keep / f"{i:06d}.npy", luma)
+                        kept.update(luma)
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
                     visibility.append(mask_visibility(full, seen))
@@ -186,7 +192,8 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
             _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
                                        source=cfg.name, boxes=lambda: (t_us, amodal, visible, visibility), progress=progress,
                                        bar_after_error=False,  # the error line alone, no bar redrawn under it
-                                       objects=scene_object_table(cfg) if labels else None)
+                                       objects=scene_object_table(cfg) if labels else None,
+                                       final_attrs=lambda: {KEPT_DIGEST_ATTR: kept.hexdigest()} if keep else {})
             n_events, n_pos = counts.events, counts.positive
     wall = time.perf_counter() - start
     saved = frames_saved_vs_fixed(times, 1000.0)

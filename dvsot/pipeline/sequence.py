@@ -72,7 +72,8 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
                    attrs: dict, segment_us: int = SEGMENT_US, *, source: str = "frames", is_log: bool = False,
                    boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
                    desc: str | None = None, bar_after_error: bool = True,
-                   objects: list[dict] | None = None) -> tuple[Path, SimulationCounts]:
+                   objects: list[dict] | None = None,
+                   final_attrs: Callable[[], dict] | None = None) -> tuple[Path, SimulationCounts]:
     """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.
 
     The frames -> events -> file loop of `dvsot generate` and `dvsot simulate`. boxes() is called once
@@ -80,6 +81,7 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
     renamed into place only when complete (DatasetWriter); on any error nothing is left behind, and the
     progress bar stays on screen unless bar_after_error is False (then the error line stands alone).
     objects: the object table (dvsot.events.labels.object_table) when the frames are LabelledFrames.
+    final_attrs(): root attributes known once every frame is consumed (the kept frames' digest).
     """
     with DatasetWriter(path, sim.width, sim.height, segment_us, attrs, objects=objects) as writer:
         bar = shown = None
@@ -106,6 +108,8 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
         rows = boxes() if boxes is not None else None
         if rows is not None:
             writer.append_boxes(*rows)
+        if final_attrs is not None:
+            writer.set_attrs(**final_attrs())
         sensor = sim.sensor_counts()
         if sensor is not None:  # what the readout dropped and what was still delayed past the last frame
             writer.set_attrs(sensor_counts=sensor)

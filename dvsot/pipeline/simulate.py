@@ -121,6 +121,9 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike,
         raise UserError(f"{frames}: the frames span {int(t_us[-1]) + 1} us, less than one segment of {segment_us} us "
                         f"({label('segment_us', labels)}): the file would hold no segment to track")
 
+    from dvsot.events.memory import check_memory
+
+    check_memory(params, source.width, source.height, float(np.diff(t_us).max()), str(frames))
     sim = EventSimulator(source.width, source.height, params, seed)
     attrs = {"name": Path(output).name.removesuffix(".h5"), "split": "", "source": str(frames),
              "simulator": params.model_dump(), "seed": seed, "generator": "dvsot simulate",

@@ -70,6 +70,11 @@ def scene_problems(cfg) -> list[tuple[tuple, str]]:
     if cfg.segment_ms > cfg.duration_s * 1000:
         out.append((("segment_ms",), f"{cfg.segment_ms:g} ms is longer than duration_s ({cfg.duration_s:g} s): "
                                      "the sequence would have no segment"))
+    from dvsot.events.labels import MAX_OBJECTS
+
+    if len(cfg.objects) > MAX_OBJECTS:  # a dry run and a scene check refuse what generate's labels cannot hold
+        out.append((("objects",), f"{len(cfg.objects)} objects beside the target, at most {MAX_OBJECTS} get an id "
+                                  "of their own in the per-event labels"))
     return out + look_at_problems(cfg)
 
 

@@ -12,11 +12,11 @@ import hashlib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from dvsot.core.defaults import SEGMENT_US
 from dvsot.events import EventParams
-from dvsot.core.strict import Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
+from dvsot.core.strict import Bool, Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
 
 # Sane ranges (dvsot.scene.checks has the checks that need the whole scene): coordinates within 1000 km
 # (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
@@ -37,6 +37,20 @@ def _camera_mm_problem(value: float) -> str | None:
     if lo <= value <= hi:
         return None
     return f"must be between {lo:g} and {hi:.4g} mm (Blender's camera clamps it into that range), got {value:g}"
+
+
+class SceneEvents(EventParams):
+    """The scene file's `events:` block: EventParams with the file's strict number rules (no "0.2", no true)."""
+
+    model_config = ConfigDict(strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_flags(cls, value: object) -> object:
+        """No field of the block is a flag: true/false is refused also where a Literal of numbers would match it."""
+        if isinstance(value, bool):
+            raise ValueError(f"Input should be a number, not {str(value).lower()}")
+        return value
 
 
 class Sensor(Strict):
@@ -237,10 +251,10 @@ class Render(Strict):
     samples: Int = Field(1, ge=1, le=4096)
     threads: Int = Field(0, ge=0, description="0 = all cores")
     max_bounces: Int = Field(2, ge=0, le=32)
-    persistent_data: bool = True
+    persistent_data: Bool = True
     amodal_mask: Literal["raster", "render"] = Field(
         "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
-    specular: bool = Field(
+    specular: Bool = Field(
         True, description="false: matte materials (no specular layer of the Principled BSDF); faster, duller look")
     shading: Literal["path", "direct"] = Field(
         "path", description="path: Cycles path tracing; direct: Lambert lighting from the suns and the world "
@@ -291,7 +305,7 @@ class SceneConfig(Strict):
     lights: list[Light] = [Light()]
     world: World = World()
     render: Render = Render()
-    events: EventParams = EventParams()
+    events: SceneEvents = SceneEvents()
     sampling: Sampling = Sampling()
 
     @model_validator(mode="after")

@@ -51,6 +51,23 @@ class TrainBudget(Strict):
             super().__init__(**data)
         except ValidationError as exc:
             raise TrainConfigError(*field_problem(type(self), exc), model=type(self).__name__) from None
+        if self.segments_per_epoch is not None and self.segments_per_epoch < self.batch_segments:
+            # a step takes batch_segments segments of an epoch's: fewer would train nothing and save the start
+            raise TrainConfigError("segments_per_epoch", f"is {self.segments_per_epoch}, fewer than batch_segments "
+                                   f"{self.batch_segments}: no epoch would take a training step",
+                                   model=type(self).__name__)
+
+    def planned_steps(self, items: int) -> int:
+        """The training steps of a run over `items` usable training segments (before any max_minutes stop)."""
+        per_epoch = min(items, self.segments_per_epoch or items)
+        return self.epochs * (per_epoch // self.batch_segments)
+
+    def check_steps(self, items: int) -> None:
+        """ValueError (one line, naming the settings) if `items` training segments give no training step."""
+        if self.planned_steps(items) < 1:
+            raise ValueError(f"{items} usable training segment{'s' * (items != 1)}, fewer than batch_segments "
+                             f"{self.batch_segments} (with segments_per_epoch {self.segments_per_epoch}, epochs "
+                             f"{self.epochs}): no training step would run; lower batch_segments or add data")
 
 
 def _bounds(model: type[BaseModel], name: str) -> dict[str, Any]:
@@ -125,8 +142,9 @@ def fit(model: torch.nn.Module, opt: torch.optim.Optimizer, items: Sequence, cfg
     history.setdefault("val", [])
     start = time.monotonic()
     step = 0
+    cfg.check_steps(len(items))  # untrained weights are no result
     per_epoch = min(len(items), cfg.segments_per_epoch or len(items))
-    planned = cfg.epochs * (per_epoch // cfg.batch_segments)
+    planned = cfg.planned_steps(len(items))
     schedule = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: lr_factor(cfg.lr_schedule, k, planned))
     bar = tqdm(total=planned, unit="batch", disable=not progress, desc=desc)
     stop = False

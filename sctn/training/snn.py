@@ -182,6 +182,7 @@ def train(files: list[Path], cfg: TrainConfig, progress: bool = True, log=print,
             train_items += [(d, int(i)) for i in fit_idx]
         if not train_items:
             raise ValueError("no training segments with a ground-truth box")
+        cfg.check_steps(len(train_items))  # before the model is built or calibrated
         if val_files and not val_items:
             raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
 

@@ -166,6 +166,7 @@ def train_siamfc(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = Tru
         train_items += [(s, int(k)) for k in fit_ks]
     if not train_items:
         raise ValueError("no training segments with a ground-truth box")
+    cfg.check_steps(len(train_items))  # before the model is built or calibrated
     if val_files and not val_items:
         raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
     model = SiamFC(cfg.network)
