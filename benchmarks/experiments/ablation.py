@@ -84,7 +84,7 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
 RETIRED_ROWS = {"finetune_first_only": "tuned_once",
                 "reinit_from_trained": "paper (which now also restarts the fine-tuning's generator)"}
 METRICS = ("A", "R", "ARscore")
-ENERGY_SEGMENTS = 64  # test segments sampled (seed 0, as the energy table) for each run's energy figures
+ENERGY_EVERY = 10  # each run counts the operations of every 10th tracked segment and of every initialisation
 
 
 def training_key(row: str) -> str:
@@ -106,6 +106,7 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
     from benchmarks.trackers.sctn import SCTNBenchTracker
     from dvsot.dataset import Dataset
     from sctn.checkpoint import load_checkpoint, save_checkpoint
+    from sctn.energy_run import energy_as_run
     from sctn.network import NetworkConfig
     from sctn.tracker import SCTNTracker
     from sctn.training.snn import TrainConfig, provenance, train
@@ -122,36 +123,29 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
         model, history = train(train_files, cfg, progress=False, val_files=val_files)
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
         minutes, silent = history["minutes"], history.get("silent")
-    ious, tuned = [], {}
+    ious, results = [], []
     tracked, seconds, init_seconds = 0, 0.0, 0.0
     for f in test_files:
-        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw))
+        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw),
+                                      energy_every=ENERGY_EVERY)
         with Dataset(f) as ds:
             res = run_sequence(bench, ds, "sctn", max_segments=max_segments)
         ious.append(res.iou)
+        results.append(res)
         tracked, seconds, init_seconds = (tracked + res.tracked_segments, seconds + res.tracker_seconds,
                                           init_seconds + res.init_seconds)
-        tuned[f] = bench.tracker.model  # fine-tuned on the file's first segment (and re-initialisations, if so)
     s = pooled(ious)
-    energy = run_energy(tuned, test_files, n_candidates, track_kw)
+    energy = energy_as_run(results)  # the tracker as it ran: its own counted segments and initialisations
     history = meta.get("history", {}) if ckpt_meta else history
     return {"row": row, "seed": seed, "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore,
             "segments": s.segments, "train_minutes": minutes, "silent": silent,
             "target_vmax_pos": history.get("target_vmax_pos"), "nearly_silent": history.get("nearly_silent"),
-            "ac_ops_per_evaluation": energy["per_evaluation"]["ac_ops"],
-            "ac_ops_per_segment": energy["per_segment"]["ac_ops"],
-            "state_updates_per_evaluation": energy["per_evaluation"]["state_updates"],
+            "ac_ops_per_evaluation": energy["per_evaluation"]["synaptic"]["ac_ops"] if energy else None,
+            "ac_ops_per_segment": energy["per_segment"]["synaptic"]["ac_ops"] if energy else None,
+            "state_updates_per_evaluation": energy["per_evaluation"]["state"]["state_updates"] if energy else None,
+            "energy_pj_per_initialisation": energy["per_initialisation"]["energy_pj"] if energy else None,
+            "energy_pj_per_sequence": energy["per_sequence"]["energy_pj"] if energy else None,
             "segments_per_s": tracked / seconds if seconds > 0 else None, "init_seconds": init_seconds}
-
-
-def run_energy(tuned: dict, test_files: list[Path], n_candidates: int, track_kw: dict) -> dict:
-    """A run's energy figures (benchmarks.analysis.energy_table.sctn_energy, the energy table's function): each test file's
-    fine-tuned network on the ENERGY_SEGMENTS segments the energy table samples, in the mode the row tracks in."""
-    from benchmarks.analysis.energy_table import _sample_by_file, sctn_energy
-
-    groups = [(tuned[f], segs) for f, segs in _sample_by_file(test_files, ENERGY_SEGMENTS, 0)]
-    mode = f"fast {track_kw.get('crop', 'bilinear')}" if track_kw.get("fast") else "per candidate"
-    return sctn_energy(groups, n_candidates, 0, (mode,))["rows"][mode]
 
 
 def summarise(runs: list[dict]) -> dict:
