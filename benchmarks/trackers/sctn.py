@@ -1,4 +1,5 @@
-"""`sctn` in the benchmark: the spiking tracker of sctn/ (shipped checkpoint by default), with its energy per segment."""
+"""`sctn` in the benchmark: the spiking tracker of sctn/ (shipped checkpoint by default), with its operations per
+tracked segment and per initialisation (sctn.energy_run)."""
 
 from __future__ import annotations
 
@@ -54,7 +55,7 @@ class SCTNBenchTracker(Tracker):
         self._due: tuple[Segment, np.ndarray] | None = None
 
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
-        """Fine-tune (first time) and start from the ground-truth box."""
+        """Start from the ground-truth box: a fresh fine-tuned copy of the trained network (SCTNParams.reinit)."""
         self.tracker.init(segment.events, segment.t0_us, box_xywh, width, height)
 
     def update(self, segment: Segment) -> np.ndarray:

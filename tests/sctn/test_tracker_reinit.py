@@ -90,11 +90,9 @@ def test_a_reinitialised_tracker_is_a_new_tracker_from_then_on(segments) -> None
     rerun = _boxes(sctn.tracker.SCTNTracker(base, **FEW), segs, wh, [0, k])
     fresh = _boxes(sctn.tracker.SCTNTracker(base, **FEW), segs, wh, [k])
     assert fresh and all(np.array_equal(rerun[i], fresh[i]) for i in fresh)
-    # online learning carries the first segment's tuning into the second: not a new tracker
-    online = _boxes(sctn.tracker.SCTNTracker(base, reinit="online", **FEW), segs, wh, [0, k])
-    tracker = sctn.tracker.SCTNTracker(base, reinit="online", **FEW)
-    _boxes(tracker, segs, wh, [0, k])
+    # online learning carries the first segment's tuning into the second: not a new tracker's network
+    online = sctn.tracker.SCTNTracker(base, reinit="online", **FEW)
+    _boxes(online, segs, wh, [0, k])
     new = sctn.tracker.SCTNTracker(base, **FEW)
     _boxes(new, segs, wh, [k])
-    assert any(not torch.equal(a, b) for a, b in zip(tracker.model.parameters(), new.model.parameters()))
-    assert set(online) >= set(fresh)
+    assert any(not torch.equal(a, b) for a, b in zip(online.model.parameters(), new.model.parameters()))

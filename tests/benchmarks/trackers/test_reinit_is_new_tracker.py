@@ -63,3 +63,15 @@ def test_reinitialised_tracker_gives_what_a_new_one_gives(sequence, name) -> Non
     for i in fresh:
         assert np.array_equal(again[i], fresh[i]), f"{name}: segment {i}: {again[i]} after a re-initialisation, " \
                                                    f"{fresh[i]} from a new tracker"
+
+
+@pytest.mark.parametrize("name", ["sctn", "sctn_ann"])
+def test_the_retired_reinit_options_are_refused_in_one_line(name) -> None:
+    from benchmarks.evaluation.plan import check_trackers
+    from dvsot.errors import UserError
+
+    spec = f"{name}.finetune_on_reinit=false"
+    with pytest.raises(UserError) as err:
+        check_trackers([name], {name: {"finetune_on_reinit": False}}, [spec])
+    text = str(err.value)
+    assert "\n" not in text and text.startswith(f"--option {spec}") and "reinit=once" in text, text
