@@ -87,11 +87,12 @@ def _mean(pairs: list[tuple[float, dict]]) -> dict:
             for k in (*COUNTS, "evaluations")}
 
 
-def energy_as_run(records: Iterable[Any]) -> dict:
+def energy_as_run(records: Iterable[Any]) -> dict | None:
     """A tracker's energy over the run records of its sequences: per_evaluation, per_segment, per_initialisation,
     per_sequence (each split(): synaptic operations and neuron-state updates, pJ), paper_convention (synaptic
     energy per evaluation: the paper's Table 3), and the sequences, segments and initialisations counted. A sequence
-    whose tracked segments were not counted (energy_every 0) or that failed is left out; None if none is left."""
+    that failed, or whose tracked segments or initialisations were not counted (energy_every 0, a tracker that does
+    not count them), is left out; None if none is left."""
     seqs = []
     for r in records:
         seg, init = _get(r, "energy"), _get(r, "init_energy")
