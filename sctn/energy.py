@@ -94,24 +94,31 @@ def count_search_ops(model: SCTN, region: torch.Tensor, origins: torch.Tensor, b
     """
     with torch.no_grad():
         _, rec = model.forward_search(region, origins, boxes, record=True, crop=crop)
+    return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]),
+            **search_record_ops(model, tuple(region.shape[-2:]), rec)}
+
+
+def search_record_ops(model: SCTN, region_hw: tuple[int, int], rec: dict) -> dict:
+    """count_search_ops' figures from the record of one forward_search over a region of region_hw pixels (also one
+    run with gradients, as fine-tuning's fast-mode mini-batches run it): ac_ops, ac_ops_by_layer, mac_ops, energy_pj,
+    state_updates."""
     ops: dict[str, float] = {}
-    h, w = region.shape[-2:]
+    h, w = region_hw
     for k, name in enumerate(LAYER_NAMES[:3]):
         fan = conv_fanout(model.convs[k], (h, w))
-        ops[name] = float((rec[name][:, 0].sum(dim=0) * fan).sum())
+        ops[name] = float((rec[name][:, 0].detach().sum(dim=0) * fan).sum())
         h = (h - model.cfg.kernels[k]) // model.cfg.strides[k] + 1
         w = (w - model.cfg.kernels[k]) // model.cfg.strides[k] + 1
-    ops["conv3"] = float(rec["crops"].sum()) * model.fcs[0].out_features  # binary crops: one AC per synapse
-    ops["fc1"] = float(rec["fc1"].sum()) * model.fcs[1].out_features
-    ops["fc2"] = float(rec["fc2"].sum()) * model.fcs[2].out_features
+    ops["conv3"] = float(rec["crops"].detach().sum()) * model.fcs[0].out_features  # binary crops: one AC per synapse
+    ops["fc1"] = float(rec["fc1"].detach().sum()) * model.fcs[1].out_features
+    ops["fc2"] = float(rec["fc2"].detach().sum()) * model.fcs[2].out_features
     ops["output"] = 0.0
     ac = sum(ops.values())
     macs = rec["mix_macs"]
     # C-LIF updates that run: every conv neuron over the region, the fc neurons per row they ran on, the outputs
     states = sum(float(rec[name].numel()) for name in ("conv1", "conv2", "conv3", "fc1", "fc2"))
     states += float(rec["fc2"].shape[0] * rec["fc2"].shape[1] * model.fcs[2].out_features)
-    return {"candidates": int(origins.shape[0]), "crops_evaluated": int(rec["crops"].shape[1]), "ac_ops": ac,
-            "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ,
+    return {"ac_ops": ac, "ac_ops_by_layer": ops, "mac_ops": macs, "energy_pj": ac * E_AC_PJ + macs * E_MAC_PJ,
             "state_updates": states}
 
 

@@ -12,6 +12,7 @@ import torch
 
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes, encode_search
+from sctn.energy import layer_ops, search_record_ops, snn_state_updates
 from sctn.loss import error_voltages, voltage_loss
 from sctn.network import SCTN
 from sctn.params import FinetuneLayers
@@ -54,6 +55,10 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
     search_iters more mini-batches then run through the fast mode (SCTN.forward_search with `crop`)
     on the samples within two box sizes of the box (whole-image negatives would make the region the
     whole sensor), so the network also adapts to the fast mode's inputs.
+
+    Returns the first and last losses and "finetune_ops": the samples run forward and, for a spiking model, the
+    synaptic operations (ACs; MACs of the fast mode's bilinear mix) and C-LIF updates their forward passes ran
+    (sctn.energy_run prices them with the backward passes).
     """
     box = np.asarray(box, np.float64)
     boxes, iou, pos = labelled_samples(rng, box, specs, image_wh)
@@ -64,15 +69,27 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
     everything = np.arange(len(boxes))
     model.train()
     losses = []
+    spiking = hasattr(model, "forward_record")  # SCTN: its spikes are counted as they run; the twin is dense
+    ops = {"samples": 0, "forward_ac_ops": 0.0, "forward_mac_ops": 0.0, "forward_state_updates": 0.0}
     for i in range(iters + search_iters):
         if i < iters:
             pick = minibatch(rng, everything, pos, batch, balanced)
             x = encode_boxes(events, t0_us, boxes[pick], cfg)
-            volts = model(x)
+            if spiking:  # the same voltages as model(x), with the spikes kept for counting
+                volts, spikes = model.forward_record(x)
+                ops["forward_ac_ops"] += float(sum(o.sum() for o in layer_ops(model, [h.detach() for h in spikes])))
+                ops["forward_state_updates"] += snn_state_updates(cfg) * len(pick)
+            else:
+                volts = model(x)
         else:
             pick = minibatch(rng, near, pos, batch, balanced)
             region, origins, rboxes = encode_search(events, t0_us, boxes[pick], box, cfg)
-            volts = model.forward_search(region, origins, rboxes, crop=crop)
+            volts, rec = model.forward_search(region, origins, rboxes, record=True, crop=crop)
+            run = search_record_ops(model, tuple(region.shape[-2:]), rec)
+            ops["forward_ac_ops"] += run["ac_ops"]
+            ops["forward_mac_ops"] += run["mac_ops"]
+            ops["forward_state_updates"] += run["state_updates"]
+        ops["samples"] += len(pick)
         positive = torch.from_numpy(pos[pick])
         loss = voltage_loss(error_voltages(volts, positive, error_time, rng), torch.from_numpy(iou[pick]), positive,
                             kind)
@@ -81,4 +98,5 @@ def finetune(model: SCTN, events: EventBatch, t0_us: int, box: np.ndarray, image
         opt.step()
         losses.append(float(loss.detach()))
     model.eval()
-    return {"finetune_loss_first": losses[0] if losses else None, "finetune_loss_last": losses[-1] if losses else None}
+    return {"finetune_loss_first": losses[0] if losses else None, "finetune_loss_last": losses[-1] if losses else None,
+            "finetune_ops": ops}

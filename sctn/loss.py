@@ -14,7 +14,11 @@ sample that should fire and did not (V below theta at every step) is charged at 
 local maximum of its V (V rises into that step from the previous one, resting 0 before the window, and
 does not rise after it; the last step counts when V rises into it); with no such peak, at a random step
 drawn from the training generator. A sample that fired is charged at its firing step of largest V, and
-one that should not fire at its step of largest V. The named ablation "max" charges every sample at the
+one that should not fire at its step of largest V. "stca_code" is STCA as its authors' code has it, which
+differs in two edge cases: a sample that should fire and has no sub-threshold peak is charged at the last
+step, and a wrong firing (a neuron that should not fire reached theta) at the peak of V within its last
+spike cluster (the run of firing steps, V >= theta, that ends at its last spike), not at the firing step
+of largest V anywhere in the window. The named ablation "max" charges every sample at the
 maximum of V over all steps, which for a neuron whose input is net negative is a quiet step where V
 rests at 0 and nothing arrived: no gradient reaches any weight though the error is not zero.
 
@@ -86,6 +90,20 @@ def peak_steps(volts: torch.Tensor, theta: float = THETA) -> torch.Tensor:
     return torch.where(peak.any(dim=1), best, torch.full_like(best, -1))
 
 
+def last_cluster_peaks(volts: torch.Tensor, theta: float = THETA) -> torch.Tensor:
+    """Per sample and neuron of volts (N, T, K): the step of largest V within the last spike cluster (the run of
+    steps with V >= theta that ends at the last such step; the first of equal maxima), or -1 where V never
+    reaches theta."""
+    v = volts.detach()
+    fires = v >= theta
+    steps = torch.arange(v.shape[1], device=v.device)[None, :, None].expand_as(v)
+    last = torch.where(fires, steps, torch.full_like(steps, -1)).amax(dim=1, keepdim=True)
+    gap = torch.where(~fires & (steps < last), steps, torch.full_like(steps, -1)).amax(dim=1, keepdim=True)
+    in_cluster = (steps > gap) & (steps <= last)
+    best = torch.where(in_cluster, v, torch.full_like(v, -torch.inf)).argmax(dim=1)
+    return torch.where(last[:, 0] >= 0, best, torch.full_like(best, -1))
+
+
 def error_steps(volts: torch.Tensor, should_fire: torch.Tensor, rule: str = "stca",
                 rng: np.random.Generator | None = None, theta: float = THETA) -> torch.Tensor:
     """The step (N, K) where each sample's error sits, for voltages (N, T, K) and should_fire (N, K).
@@ -93,6 +111,8 @@ def error_steps(volts: torch.Tensor, should_fire: torch.Tensor, rule: str = "stc
     "max": the step of largest V. "stca": that step too, except for a sample that should fire and never
     reached theta: the step of its highest local maximum of V (peak_steps), else a step drawn from `rng`
     (one draw per sample and neuron on every call, so the stream does not depend on the voltages).
+    "stca_code": as "stca", but the last step where "stca" draws one (no rng needed), and a sample that
+    should not fire and reached theta at the peak of its last spike cluster (last_cluster_peaks).
     """
     if rule not in ERROR_TIMES:
         raise ValueError(f"unknown error time {rule!r} ({', '.join(ERROR_TIMES)})")
@@ -100,13 +120,20 @@ def error_steps(volts: torch.Tensor, should_fire: torch.Tensor, rule: str = "stc
     top = v.argmax(dim=1)
     if rule == "max":
         return top
-    if rng is None:
-        raise ValueError("the stca error time needs a random generator for its steps without a peak")
     n, t, k = v.shape
-    drawn = torch.from_numpy(rng.integers(0, t, size=(n, k))).to(top.dtype)
+    if rule == "stca_code":
+        fallback = torch.full_like(top, t - 1)
+    elif rng is None:
+        raise ValueError("the stca error time needs a random generator for its steps without a peak")
+    else:
+        fallback = torch.from_numpy(rng.integers(0, t, size=(n, k))).to(top.dtype)
     peak = peak_steps(v, theta)
-    missed = should_fire & (v.amax(dim=1) < theta)
-    return torch.where(missed, torch.where(peak >= 0, peak, drawn), top)
+    fired = v.amax(dim=1) >= theta
+    missed = should_fire & ~fired
+    steps = torch.where(missed, torch.where(peak >= 0, peak, fallback), top)
+    if rule == "stca_code":
+        steps = torch.where(~should_fire & fired, last_cluster_peaks(v, theta), steps)
+    return steps
 
 
 def error_voltages(volts: torch.Tensor, positive: torch.Tensor, rule: str = "stca",

@@ -1,4 +1,4 @@
-"""SCTN tracking (paper Algorithm 1): fine-tune on the first segment, then score candidates per segment.
+"""SCTN tracking (paper Algorithm 1): fine-tune on the initialisation segment, then score candidates per segment.
 
 Per segment: 256 gaussian candidates around the last box (translation range `trans` x mean box
 size, scale 1.05), each scored by the maximum voltage of the target neuron over the time window;
@@ -14,15 +14,17 @@ crop's sampling (bilinear at the sub-cell offset, or the nearest cell), and the 
 
 Candidates are drawn from a generator seeded by (seed, the previous box rounded to whole pixels), so
 the same location always gets the same candidates (the paper fixes the test seed "to ensure the
-target candidates generated for the same location are fixed"), whatever happened before. Fine-tuning
-happens at the first initialisation of a sequence, as in Algorithm 1 (steps 1-2), and again at each
-re-initialisation after a failure: the paper's protocol "reinitializes the tracker" without saying
-whether that repeats the fine-tuning, and the validation scenes chose it (docs/sctn.md, Ablations).
-Each re-initialisation tunes the already tuned network further on its segment, with the same budget,
-from its ground-truth box alone. `finetune_on_reinit=False` is the alternative (the row
-`finetune_first_only`): a re-initialisation then resets the box and the translation range only.
-`reinit_from="trained"` (the row `reinit_from_trained`) tunes a fresh copy of the trained network at each
-re-initialisation instead, as a new tracker would; the samples' generator runs on either way.
+target candidates generated for the same location are fixed"), whatever happened before.
+
+Initialisation is Algorithm 1 (steps 1-2) under the protocol's re-initialisation, which reads (as VOT
+and GOT-10k read it) as a new tracker: every initialisation, the first and each after a failure, fine-tunes
+a fresh copy of the trained network on that segment's ground truth, with the fine-tuning's generator and
+torch's seed restarted and the translation range reset, so nothing learnt or drawn on earlier segments
+carries over (`reinit="new"`, the preset). Two named variants: `reinit="online"` tunes the network tuned so
+far further at each re-initialisation (online learning on the test sequence; the row `online_tuning`), and
+`reinit="once"` keeps the first tuning and resets only the box and the translation range (the row
+`tuned_once`).
+
 Fine-tuning's own settings (`error_time`, `finetune_balanced`, `finetune_layers`) are sctn.finetune's.
 """
 
@@ -67,7 +69,7 @@ class SCTNTracker:
         self.finetune_search_iters = p.finetune_search_iters if p.fast else 0
         self.finetune_options = {"error_time": p.error_time, "balanced": p.finetune_balanced,
                                  "layers": p.finetune_layers}
-        self.finetune_on_reinit, self.reinit_from = p.finetune_on_reinit, p.reinit_from
+        self.reinit = p.reinit
         self.n_candidates, self.trans0, self.trans_growth, self.trans_max = (p.n_candidates, p.trans, p.trans_growth,
                                                                             p.trans_max)
         self.vstar_threshold, self.top_k = p.vstar_threshold, p.top_k
@@ -80,18 +82,19 @@ class SCTNTracker:
         self.last_search: tuple[np.ndarray, np.ndarray] | None = None
 
     def init(self, events: EventBatch, t0_us: int, box_xywh: np.ndarray, width: int, height: int) -> None:
-        """Start tracking box_xywh (pixels); fine-tunes a copy of the model on this segment the first time (and at
-        every later initialisation with finetune_on_reinit: the tuned network, or a fresh copy with reinit_from)."""
+        """Start tracking box_xywh (pixels): fine-tune a fresh copy of the trained model on this segment, as a new
+        tracker would (reinit "new"; "online" tunes the tuned one further, "once" only the first time)."""
         self.box = np.asarray(box_xywh, np.float64).copy()
         self.image_wh = (int(width), int(height))
         self.trans = self.trans0
+        self.last_search = None
         first = not self.tuned
-        if first:
+        if first or self.reinit == "new":
             self.rng = np.random.default_rng(self.seed)
             torch.manual_seed(self.seed)
-        if first or self.reinit_from == "trained":
             self.model = copy.deepcopy(self.base)
-        if self.finetune_iters > 0 and (first or self.finetune_on_reinit):
+        self.last_stats = {}
+        if self.finetune_iters > 0 and (first or self.reinit != "once"):
             self.last_stats = finetune(self.model, events, t0_us, self.box, self.image_wh, self.rng,
                                        iters=self.finetune_iters, search_iters=self.finetune_search_iters,
                                        crop=self.crop, **self.finetune_options)

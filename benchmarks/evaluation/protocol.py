@@ -52,6 +52,7 @@ class SequenceResult:
     extra: dict = field(default_factory=dict)
     init_seconds: float = 0.0  # time in tracker.init (SCTN fine-tunes there), apart from tracker_seconds
     segment_seconds: np.ndarray | None = None  # per segment: seconds in init or update, NaN where not asked
+    init_energy: dict | None = None  # mean counts of an initialisation (fine-tuning's too), as energy_per_init gives
 
     @property
     def segments_per_s(self) -> float:
@@ -97,6 +98,7 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
     inits: list[int] = []
     spent, init_spent, tracked = 0.0, 0.0, 0
     energies: list[dict] = []
+    init_energies: list[dict] = []
     need_init = True
     try:
         for seg in dataset.segments(0, n):
@@ -111,6 +113,9 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
                 seconds[i] = time.perf_counter() - start
                 init_spent += seconds[i]
                 inits.append(i)
+                init_energy = getattr(tracker, "energy_per_init", lambda: None)()  # counting is not tracking
+                if init_energy is not None:
+                    init_energies.append(init_energy)
                 preds[i] = box
                 need_init = False
                 continue
@@ -138,9 +143,14 @@ def run_sequence(tracker: Tracker, dataset: Dataset, tracker_name: str | None = 
         return SequenceResult(name, dataset.name, np.full(n, np.nan), preds, inits, spent, tracked,
                               error=f"{exception_line(exc)} ({last.filename.split('/')[-1]}:{last.lineno})",
                               init_seconds=init_spent, segment_seconds=seconds)
-    energy = None
-    if energies:
-        keys = set.intersection(*(set(e) for e in energies))
-        energy = {k: float(np.mean([e[k] for e in energies])) for k in sorted(keys)}
-    return SequenceResult(name, dataset.name, ious, preds, inits, spent, tracked, energy, init_seconds=init_spent,
-                          segment_seconds=seconds)
+    return SequenceResult(name, dataset.name, ious, preds, inits, spent, tracked, _mean_counts(energies),
+                          init_seconds=init_spent, segment_seconds=seconds, init_energy=_mean_counts(init_energies))
+
+
+def _mean_counts(records: list[dict]) -> dict | None:
+    """The mean of each number the records share (None for none): a tracker's counts per segment or initialisation."""
+    if not records:
+        return None
+    keys = set.intersection(*(set(e) for e in records))
+    return {k: float(np.mean([e[k] for e in records])) for k in sorted(keys)
+            if all(isinstance(e[k], (int, float)) for e in records)}

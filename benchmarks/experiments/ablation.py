@@ -57,11 +57,13 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "calibration": ({"init": "calibrate"}, {}, {}),
     "init_fluctuation": ({"init": "fluctuation"}, {}, {}),
     "error_time_max": ({"error_time": "max"}, {}, {"error_time": "max"}),
+    "stca_code": ({"error_time": "stca_code"}, {}, {"error_time": "stca_code"}),  # STCA as its authors code it
     "lr_cosine": ({"lr_schedule": "cosine"}, {}, {}),  # the paper gives no schedule: constant, or cosine to 0
     "finetune_balanced": ({}, {}, {"finetune_balanced": True}),
     "finetune_fc_only": ({}, {}, {"finetune_layers": "fc"}),
-    "finetune_first_only": ({}, {}, {"finetune_on_reinit": False}),  # Algorithm 1's fine-tuning, not repeated
-    "reinit_from_trained": ({}, {}, {"reinit_from": "trained"}),  # each re-initialisation tunes the trained network
+    # what a re-initialisation starts from (the preset: a new tracker, Algorithm 1 from the trained network again)
+    "online_tuning": ({}, {}, {"reinit": "online"}),  # online learning on the test sequence: tunes the tuned network
+    "tuned_once": ({}, {}, {"reinit": "once"}),  # Algorithm 1's single tuning kept: box and range reset only
     "squared_error": ({"squared_error": True}, {}, {}),
     # the background output neuron: trained by the mirrored error, or left out of the network and its op counts
     # (the preset keeps it, untrained: the paper has two output neurons and trains the target's voltage)
@@ -78,8 +80,11 @@ ROWS: dict[str, tuple[dict, dict, dict]] = {
     "widths_x4": ({}, scaled_widths(4), {}),
     "widths_mdnet": ({}, MDNET_WIDTHS, {}),
 }
+# rows that were renamed when the preset became a new tracker per re-initialisation: what each is now
+RETIRED_ROWS = {"finetune_first_only": "tuned_once",
+                "reinit_from_trained": "paper (which now also restarts the fine-tuning's generator)"}
 METRICS = ("A", "R", "ARscore")
-ENERGY_SEGMENTS = 64  # test segments sampled (seed 0, as the energy table) for each run's energy figures
+ENERGY_EVERY = 10  # each run counts the operations of every 10th tracked segment and of every initialisation
 
 
 def training_key(row: str) -> str:
@@ -101,6 +106,7 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
     from benchmarks.trackers.sctn import SCTNBenchTracker
     from dvsot.dataset import Dataset
     from sctn.checkpoint import load_checkpoint, save_checkpoint
+    from sctn.energy_run import energy_as_run
     from sctn.network import NetworkConfig
     from sctn.tracker import SCTNTracker
     from sctn.training.snn import TrainConfig, provenance, train
@@ -117,36 +123,29 @@ def run_one(row: str, seed: int, train_files: list[Path], test_files: list[Path]
         model, history = train(train_files, cfg, progress=False, val_files=val_files)
         save_checkpoint(ckpt, model, provenance(train_files, cfg, history))
         minutes, silent = history["minutes"], history.get("silent")
-    ious, tuned = [], {}
+    ious, results = [], []
     tracked, seconds, init_seconds = 0, 0.0, 0.0
     for f in test_files:
-        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw))
+        bench = SCTNBenchTracker.wrap(SCTNTracker(model, seed=seed, n_candidates=n_candidates, **track_kw),
+                                      energy_every=ENERGY_EVERY)
         with Dataset(f) as ds:
             res = run_sequence(bench, ds, "sctn", max_segments=max_segments)
         ious.append(res.iou)
+        results.append(res)
         tracked, seconds, init_seconds = (tracked + res.tracked_segments, seconds + res.tracker_seconds,
                                           init_seconds + res.init_seconds)
-        tuned[f] = bench.tracker.model  # fine-tuned on the file's first segment (and re-initialisations, if so)
     s = pooled(ious)
-    energy = run_energy(tuned, test_files, n_candidates, track_kw)
+    energy = energy_as_run(results)  # the tracker as it ran: its own counted segments and initialisations
     history = meta.get("history", {}) if ckpt_meta else history
     return {"row": row, "seed": seed, "A": s.accuracy, "R": s.robustness, "ARscore": s.arscore,
             "segments": s.segments, "train_minutes": minutes, "silent": silent,
             "target_vmax_pos": history.get("target_vmax_pos"), "nearly_silent": history.get("nearly_silent"),
-            "ac_ops_per_evaluation": energy["per_evaluation"]["ac_ops"],
-            "ac_ops_per_segment": energy["per_segment"]["ac_ops"],
-            "state_updates_per_evaluation": energy["per_evaluation"]["state_updates"],
+            "ac_ops_per_evaluation": energy["per_evaluation"]["synaptic"]["ac_ops"] if energy else None,
+            "ac_ops_per_segment": energy["per_segment"]["synaptic"]["ac_ops"] if energy else None,
+            "state_updates_per_evaluation": energy["per_evaluation"]["state"]["state_updates"] if energy else None,
+            "energy_pj_per_initialisation": energy["per_initialisation"]["energy_pj"] if energy else None,
+            "energy_pj_per_sequence": energy["per_sequence"]["energy_pj"] if energy else None,
             "segments_per_s": tracked / seconds if seconds > 0 else None, "init_seconds": init_seconds}
-
-
-def run_energy(tuned: dict, test_files: list[Path], n_candidates: int, track_kw: dict) -> dict:
-    """A run's energy figures (benchmarks.analysis.energy_table.sctn_energy, the energy table's function): each test file's
-    fine-tuned network on the ENERGY_SEGMENTS segments the energy table samples, in the mode the row tracks in."""
-    from benchmarks.analysis.energy_table import _sample_by_file, sctn_energy
-
-    groups = [(tuned[f], segs) for f, segs in _sample_by_file(test_files, ENERGY_SEGMENTS, 0)]
-    mode = f"fast {track_kw.get('crop', 'bilinear')}" if track_kw.get("fast") else "per candidate"
-    return sctn_energy(groups, n_candidates, 0, (mode,))["rows"][mode]
 
 
 def summarise(runs: list[dict]) -> dict:
@@ -244,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--test-split", default="test", help="split of the --test files, or 'any' (validation scenes "
                    "have none: --test data/val --test-split any makes the rows' choice on validation)")
     p.add_argument("--ci", action="store_true", help="use the two tiny CI scenes (rendered into a temp dir)")
-    p.add_argument("--rows", nargs="+", default=["paper"], choices=sorted(ROWS))
+    p.add_argument("--rows", nargs="+", default=["paper"], help=f"rows: {', '.join(ROWS)}")
     p.add_argument("--seeds", type=int, default=5, help="seeds 0 .. N-1")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--minutes", type=float, default=None, help="also stop each training after this long")
@@ -264,6 +263,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--retries", type=int, default=1, help="resubmit a failed run this many times")
     p.add_argument("--out", required=True, help="directory for checkpoints and runs.jsonl (reused by a rerun)")
     a = p.parse_args(argv)
+    for row in a.rows:
+        if row in RETIRED_ROWS:
+            p.error(f"--rows {row}: renamed; it is now {RETIRED_ROWS[row]}")
+        if row not in ROWS:
+            p.error(f"--rows {row}: no such row (choose from {', '.join(ROWS)})")
     if a.scheduler:
         parse_scheduler(a.scheduler)  # a bad spec: one line, before anything runs
     if a.retries < 0:

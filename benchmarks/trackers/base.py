@@ -23,5 +23,11 @@ class Tracker(ABC):
         """The predicted box (4,) xywh pixels at the end of the next segment."""
 
     def energy_per_segment(self) -> dict | None:
-        """Synaptic operations and energy (pJ) of the last update, for trackers that can count them."""
+        """Operations of the last update, for trackers that can count them: ac_ops, mac_ops, energy_pj (synaptic),
+        state_updates (C-LIF), activations (an ANN's), evaluations (per segment); sctn.energy_run reads them."""
+        return None
+
+    def energy_per_init(self) -> dict | None:
+        """Operations of the last init, fine-tuning's forward and backward included (the keys of energy_per_segment,
+        less evaluations), for trackers that can count them."""
         return None

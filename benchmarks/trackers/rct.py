@@ -33,9 +33,8 @@ on the cluster centre (+0.5 px: pixel i covers [i, i+1)) whose size is the init 
 or the cluster's rectangle 2rX x 2rY (`box_size="cluster"`). The target is the candidate with the highest
 IoU with the previous target box; if none overlaps it, the previous box is kept. With
 `radius_from_box=True` the cluster radius is half the larger side of the init box instead of
-`cluster_size` (off by default). Cluster state carries over across segments and across
-re-initialisations on contiguous segments (the tracker sees one event stream); a non-contiguous init
-starts from an empty cluster list.
+`cluster_size` (off by default). Cluster state carries over across segments; every initialisation,
+the protocol's re-initialisations included, starts from an empty cluster list, as a new tracker does.
 """
 
 from __future__ import annotations
@@ -96,7 +95,6 @@ class RCTTracker(Tracker):
         self.clusters: ClusterSet | None = None
         self._box = np.full(4, np.nan, np.float32)
         self._size = np.zeros(2)
-        self._t_end: int | None = None
         self._dims = (0, 0)
 
     def _feed(self, events: EventBatch) -> None:
@@ -117,17 +115,13 @@ class RCTTracker(Tracker):
         box = np.asarray(box_xywh, dtype=np.float32).reshape(4)
         if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
             raise ValueError(f"rct: cannot initialise on an absent or empty box {box.tolist()}")
-        dims = (int(width), int(height))
-        contiguous = (self.clusters is not None and self._dims == dims and self._t_end == int(segment.t0_us))
-        self._dims = dims
+        self._dims = (int(width), int(height))
         if self.params.radius_from_box:
             radius = float(max(box[2], box[3])) / 2.0
         else:
-            radius = self.params.cluster_size * max(dims)
-        if not contiguous or self.clusters.radius0 != radius:
-            self.clusters = ClusterSet(self.params, dims[0], dims[1], radius)
+            radius = self.params.cluster_size * max(self._dims)
+        self.clusters = ClusterSet(self.params, self._dims[0], self._dims[1], radius)  # a new tracker's: empty
         self._feed(segment.events)
-        self._t_end = int(segment.t1_us)
         self._box = box.copy()
         self._size = box[2:].astype(float)
 
@@ -148,7 +142,6 @@ class RCTTracker(Tracker):
         if self.clusters is None:
             raise RuntimeError("rct: update() before init()")
         self._feed(segment.events)
-        self._t_end = int(segment.t1_us)
         boxes = self.candidate_boxes(int(segment.t1_us))
         if len(boxes):
             scores = iou_xywh(boxes, self._box[None, :])

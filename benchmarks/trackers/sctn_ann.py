@@ -2,7 +2,8 @@
 
 The same tracker code as `sctn` runs it: fine-tuning on the first segment, 256 gaussian candidates per
 segment each evaluated separately (the per-candidate path; the twin has no fast mode), top-3 scores
-and the V* >= 0.2 rule on the target unit's output. Energy: dense MACs, the same for every candidate.
+and the V* >= 0.2 rule on the target unit's output. Energy: dense MACs and activations, the same for
+every candidate; an initialisation's are fine-tuning's forward and backward (sctn.energy_run).
 """
 
 from __future__ import annotations
@@ -33,13 +34,31 @@ class TwinBenchTracker(SCTNBenchTracker):
         self._start(opts.energy_every)
         self._per_candidate: float | None = None
 
+    def _per_sample(self) -> tuple[float, float]:
+        """(MACs, activations) of one twin evaluation, counted once on the layers."""
+        if self._per_candidate is None:
+            import torch
+
+            from sctn.ann import twin_macs
+            from sctn.energy import count_activations
+
+            model, cfg = self.tracker.model, self.tracker.model.cfg
+            acts = count_activations(model, torch.zeros(1, cfg.steps, 2, cfg.input_size, cfg.input_size))
+            self._per_candidate = (twin_macs(model)["mac_ops"], acts)
+        return self._per_candidate
+
     def _count(self, segment, box) -> dict:
-        """Dense MACs of the segment: one twin evaluation per candidate (counted once on the layers)."""
-        from sctn.ann import twin_macs
+        """Dense MACs and activations of the segment: one twin evaluation per candidate."""
         from sctn.energy import E_MAC_PJ
 
-        if self._per_candidate is None:
-            self._per_candidate = twin_macs(self.tracker.model)["mac_ops"]
-        total = self._per_candidate * len(self.tracker.last_search[0])
-        return {"mac_ops_per_candidate": self._per_candidate, "ac_ops": 0.0, "mac_ops": total,
-                "energy_pj": total * E_MAC_PJ}
+        macs, acts = self._per_sample()
+        n = len(self.tracker.last_search[0])
+        return {"mac_ops_per_candidate": macs, "ac_ops": 0.0, "mac_ops": macs * n, "energy_pj": macs * n * E_MAC_PJ,
+                "state_updates": 0.0, "activations": acts * n, "evaluations": n}
+
+    def _init_counts(self) -> dict:
+        """Fine-tuning's dense forward and backward MACs and activations (sctn.energy_run.finetune_operations)."""
+        from sctn.energy_run import finetune_operations
+
+        macs, acts = self._per_sample()
+        return finetune_operations(self.tracker.last_stats, False, macs, acts)

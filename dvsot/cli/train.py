@@ -54,9 +54,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "fluctuation (Rossbroich et al. 2022: V's fluctuations theta / xi on a first batch)")
     p.add_argument("--fluctuation-xi", type=float, default=None, metavar="XI",
                    help="sctn, --init fluctuation: theta over the initial standard deviation of V (default 2)")
-    p.add_argument("--error-time", choices=["stca", "max"], default=None,
-                   help="the step each sample's error sits at: stca (default; STCA's rule) or max (V's maximum "
-                        "over all steps, the rule before it: an ablation row)")
+    p.add_argument("--error-time", choices=["stca", "stca_code", "max"], default=None,
+                   help="the step each sample's error sits at: stca (default; STCA's rule), stca_code (its authors' "
+                        "code's edge cases) or max (V's maximum over all steps, the rule before it): ablation rows")
     p.add_argument("--val-data", nargs="+", default=None, metavar="DIR",
                    help="validation files, directories or globs (any split): validate on them instead of every "
                         "10th training segment, which then all train")

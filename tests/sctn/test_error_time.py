@@ -1,4 +1,5 @@
-"""Where a sample's error sits in time (sctn.loss.error_steps): STCA's rule, the preset's, against the maximum."""
+"""Where a sample's error sits in time (sctn.loss.error_steps): STCA's rule, the preset's, its authors' code's edge
+cases ("stca_code"), against the maximum."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from sctn.loss import error_steps, error_voltages, peak_steps
+from sctn.loss import error_steps, error_voltages, last_cluster_peaks, peak_steps
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from synthetic import moving_square_file  # noqa: E402
@@ -47,6 +48,41 @@ def test_stca_steps_by_case() -> None:
         error_steps(v, should, "stca")
     with pytest.raises(ValueError, match="unknown error time"):
         error_steps(v, should, "mean")
+
+
+def test_last_cluster_peaks_closed_form() -> None:
+    v = _volts([0.0, 0.9, 0.2, 0.6, 0.7, 0.3],  # clusters {1} and {3, 4}: the last one's peak is step 4
+               [0.6, 0.8, 0.55, 0.1, 0.0, 0.0],  # one cluster {0, 1, 2} from the first step: its peak, step 1
+               [0.0, 0.1, 0.2, 0.3, 0.2, 0.1],   # never reaches theta: none
+               [0.1, 0.2, 0.9, 0.1, 0.5, 0.5],   # last cluster {4, 5} at exactly theta: its first, step 4
+               [0.0, 0.0, 0.0, 0.0, 0.7, 0.9])   # fires into the last step: the last step
+    assert last_cluster_peaks(v)[:, 0].tolist() == [4, 1, -1, 4, 5]
+
+
+def test_stca_code_steps_by_case() -> None:
+    v = _volts([0.0, 0.0, -0.3, -0.2, -0.4],  # should fire, never did, a peak at step 3: as "stca"
+               [0.0, 0.0, -0.1, -0.2, -0.3],  # should fire, no peak: the last step (STCA's code), not a drawn one
+               [0.0, 0.6, 0.2, 0.8, 0.1],     # should fire and fired: its firing step of largest V, as "stca"
+               [0.0, 0.3, 0.1, 0.0, 0.0],     # should not fire, did not: the step of largest V, as "stca"
+               [0.0, 0.9, 0.1, 0.6, 0.2])     # should not fire, fired twice: the last cluster's peak, step 3
+    should = torch.tensor([[True], [True], [True], [False], [False]])
+    assert error_steps(v, should, "stca_code")[:, 0].tolist() == [3, 4, 3, 1, 3]
+    rng = np.random.default_rng(5)
+    stca = error_steps(v, should, "stca", rng)[:, 0].tolist()  # today's rule: a drawn step, the largest V overall
+    assert stca[4] == 1 and stca[1] == int(np.random.default_rng(5).integers(0, 5, size=(5, 1))[1, 0])
+    # the neurons of one sample are ruled apart: the background (should not fire) and the target (should)
+    two = torch.stack([v[4, :, 0], v[1, :, 0]], dim=1)[None]
+    assert error_steps(two, torch.tensor([[False, True]]), "stca_code")[0].tolist() == [3, 4]
+
+
+def test_stca_code_draws_nothing_and_its_gradient_sits_at_one_step() -> None:
+    volts = torch.randn(6, 10, 2, requires_grad=True)
+    pos = torch.tensor([True, False, True, False, True, False])
+    rng = np.random.default_rng(0)
+    state = rng.bit_generator.state
+    error_voltages(volts, pos, "stca_code", rng).sum().backward()
+    assert rng.bit_generator.state == state
+    assert torch.equal((volts.grad != 0).sum(dim=1), torch.ones(6, 2, dtype=torch.long))
 
 
 def test_max_rule_is_vmax_and_gradient_sits_at_one_step() -> None:

@@ -157,11 +157,25 @@ class SiamFCTracker(Tracker):
         """MACs of one update and of one init (frame_macs with this tracker's settings)."""
         return frame_macs(self.model, len(self.scales), self.opts.response_up)
 
-    def energy_per_segment(self) -> dict | None:
-        """MACs and pJ (4.6 pJ per MAC) of one update: dense, the same for every frame."""
-        from sctn.energy import E_MAC_PJ
-
+    def _counts(self) -> tuple[dict, dict]:
+        """(update, init) operations, counted once on the layers: MACs and ReLU activations."""
         if self._macs is None:
-            m = self.frame_macs()
-            self._macs = {"ac_ops": 0.0, "mac_ops": m["mac_ops"], "energy_pj": m["mac_ops"] * E_MAC_PJ}
+            from sctn.energy import E_MAC_PJ, count_activations
+
+            m, cfg = self.frame_macs(), self.model.cfg
+            acts = count_activations(self.model.features, torch.zeros(len(self.scales), 1, cfg.search_size,
+                                                                      cfg.search_size))
+            init_acts = count_activations(self.model.features, torch.zeros(1, 1, cfg.exemplar_size, cfg.exemplar_size))
+            self._macs = ({"ac_ops": 0.0, "mac_ops": m["mac_ops"], "energy_pj": m["mac_ops"] * E_MAC_PJ,
+                           "state_updates": 0.0, "activations": acts, "evaluations": 1},
+                          {"ac_ops": 0.0, "mac_ops": m["init_mac_ops"], "energy_pj": m["init_mac_ops"] * E_MAC_PJ,
+                           "state_updates": 0.0, "activations": init_acts})
         return self._macs
+
+    def energy_per_segment(self) -> dict | None:
+        """MACs and pJ (4.6 pJ per MAC) of one update, and its activations: dense, the same for every frame."""
+        return self._counts()[0]
+
+    def energy_per_init(self) -> dict | None:
+        """MACs, pJ and activations of one init: the exemplar's features (no fine-tuning)."""
+        return self._counts()[1]

@@ -57,8 +57,7 @@ def test_ablation_rows_for_the_rule_the_inits_and_the_tracker() -> None:
     assert ROWS["error_time_max"][0] == {"error_time": "max"} and ROWS["error_time_max"][2] == {"error_time": "max"}
     assert ROWS["calibration"][0] == {"init": "calibrate"} and ROWS["init_fluctuation"][0] == {"init": "fluctuation"}
     for row, option in (("finetune_balanced", {"finetune_balanced": True}), ("finetune_fc_only", {"finetune_layers": "fc"}),
-                        ("finetune_first_only", {"finetune_on_reinit": False}),
-                        ("reinit_from_trained", {"reinit_from": "trained"})):
+                        ("tuned_once", {"reinit": "once"}), ("online_tuning", {"reinit": "online"})):
         assert ROWS[row] == ({}, {}, option) and training_key(row) == "paper"  # the preset's networks, tuned otherwise
     assert ROWS["background_term"][0] == {"background_term": True}
 

@@ -59,3 +59,16 @@ def test_the_table_has_a_speed_column():
     header, _, line = format_table(summarise(runs)).splitlines()
     cells = [c.strip() for c in line.split("|")]
     assert "segments/s" in header and cells[header.split("|").index(" segments/s ")] == "4.00"
+
+
+def test_the_reinit_and_error_time_rows_and_the_renamed_ones(tmp_path, capsys):
+    from benchmarks.experiments.ablation import main
+
+    assert ROWS["paper"] == ({}, {}, {}) and ROWS["online_tuning"] == ({}, {}, {"reinit": "online"})
+    assert ROWS["tuned_once"] == ({}, {}, {"reinit": "once"}) and training_key("tuned_once") == "paper"
+    assert ROWS["stca_code"] == ({"error_time": "stca_code"}, {}, {"error_time": "stca_code"})
+    for old, new in (("finetune_first_only", "tuned_once"), ("reinit_from_trained", "paper")):
+        with pytest.raises(SystemExit) as exit_:
+            main(["--rows", old, "--out", str(tmp_path / "out")])
+        assert exit_.value.code == 2 and f"--rows {old}: renamed; it is now {new}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
