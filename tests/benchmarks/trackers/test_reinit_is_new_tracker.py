@@ -44,7 +44,7 @@ def _run(tracker, segs, wh, inits: list[int]) -> dict[int, np.ndarray]:
 
 
 def _new(name: str):
-    from dvsot.errors import UserError
+    from dvsot.core.errors import UserError
 
     try:
         return get_tracker(name, **OPTIONS.get(name, {}))
@@ -67,8 +67,8 @@ def test_reinitialised_tracker_gives_what_a_new_one_gives(sequence, name) -> Non
 
 @pytest.mark.parametrize("name", ["sctn", "sctn_ann"])
 def test_the_retired_reinit_options_are_refused_in_one_line(name) -> None:
-    from benchmarks.evaluation.plan import check_trackers
-    from dvsot.errors import UserError
+    from benchmarks.bench.plan import check_trackers
+    from dvsot.core.errors import UserError
 
     spec = f"{name}.finetune_on_reinit=false"
     with pytest.raises(UserError) as err:
