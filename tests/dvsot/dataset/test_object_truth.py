@@ -144,3 +144,24 @@ def test_damaged_truth_is_one_line_naming_file_and_dataset_exit_2(pristine, tmp_
     msg = str(info.value)
     assert str(path) in msg and f"/{field}" in msg and words in msg and "\n" not in msg, msg
     assert main(["info", str(path)]) == 2
+
+
+def test_segment_dataset_labels_give_the_rendered_silhouette_and_shares(tmp_path):
+    from dvsot.dataset.tonic_dataset import TonicDataset
+    from dvsot.dataset.torchdata import SegmentDataset, collate_segments
+
+    path, frames, stacked, trunc = write_scene(tmp_path / "s.h5")
+    data = SegmentDataset(path, labels=True, with_box=False)
+    events, box, objects, event_mask, truth = data[0]  # segment 0 ends at 2 ms: sample 2
+    np.testing.assert_array_equal(truth["silhouette"], frames[2].objects == TARGET_ID)
+    assert truth["visibility"] == stacked["visibility"][2, 1] and truth["truncation"] == trunc[2]
+    assert truth["absent"] is False and event_mask.shape == truth["silhouette"].shape == (H, W)
+    last = data[3][4]  # ends at 8 ms: the target has left the sensor
+    assert last["truncation"] == 1.0 and last["absent"] and not last["silhouette"].any()
+    target = TonicDataset(path, labels=True, with_box=False)[3][1]
+    assert set(target) == {"box", "objects", "event_mask", "silhouette", "visibility", "truncation", "absent"}
+    assert np.isnan(target["box"]).all() and target["truncation"] == 1.0
+    pytest.importorskip("torch")
+    *_, batch = collate_segments([data[0], data[3]])
+    assert tuple(batch["silhouette"].shape) == (2, H, W) and batch["absent"].tolist() == [False, True]
+    assert batch["truncation"][1].item() == 1.0
