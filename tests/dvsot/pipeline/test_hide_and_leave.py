@@ -11,14 +11,19 @@ from dvsot.events.labels import TARGET_ID
 from dvsot.pipeline.generate import generate
 from dvsot.scene import load_scene
 
-pytestmark = pytest.mark.blender
-
 SCENE = Path(__file__).resolve().parents[3] / "blender_scenes" / "examples" / "hide_and_leave.yaml"
 # 64x48 px (the lens's field of view kept), few samples, few Cycles samples: a few seconds
 TINY = {"sensor.width": 64, "sensor.height": 48, "sampling.max_displacement_px": 3.0, "sampling.min_rate_hz": 10.0,
         "render.samples": 1}
 
 
+def test_the_example_is_in_no_split_and_not_among_the_nine():
+    cfg = load_scene(SCENE)
+    assert cfg.split == "" and SCENE not in set(SCENE.parents[1].glob("*.yaml"))
+    assert cfg.objects[0].role == "occluder"
+
+
+@pytest.mark.blender
 def test_hidden_stretch_is_absent_and_leaving_truncates(tmp_path):
     cfg = load_scene(SCENE, TINY)
     out = tmp_path / "hide.h5"
