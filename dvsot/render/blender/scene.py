@@ -11,7 +11,11 @@ Blender could not write there (a full or read-only file system) is one RunError 
   triangles projected with the same camera and rasterised at pixel centres (dvsot.render.raster), which
   gives the pixels an object-index pass of the target alone gives, at a fraction of the cost; with
   render.amodal_mask = "render", a second view layer "mask" holding the target alone (every other
-  collection excluded) whose Object Index is the mask.
+  collection excluded) whose Object Index is the mask;
+* every object's amodal silhouette (the target's and the scene file's objects'), rasterised the same way over
+  its whole projected extent, on the sensor and past its edges (object_coverage): its amodal mask, and its
+  area on the sensor and in all, from which truncation (the share off the sensor) follows; render_truth gives
+  it with the render.
 
 Cycles runs on the CPU with a fixed seed (no animated seed) and no denoising, so a static pixel gets
 exactly the same value in every frame and produces no false events.
@@ -67,7 +71,8 @@ def _mesh_object(name: str, obj: SceneObject, collection, surface: str = "princi
 
 
 class BlenderScene:
-    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask)."""
+    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask); render_truth() adds
+    the object index pass and every object's amodal coverage."""
 
     def __init__(self, cfg: SceneConfig) -> None:
         self.cfg = cfg
