@@ -164,7 +164,7 @@ class Segment:
     box_visible: np.ndarray | None = None
     visibility: float | None = None  # visible / amodal target pixels at t1_us (None: not in the file)
     absent: bool | None = None  # nothing of the target visible at t1_us, or outside the sensor
-    truncation: float | None = None  # share of the target's whole silhouette off the sensor at t1_us (None: not in the file)
+    truncation: float | None = None  # share of the target's silhouette off the sensor at t1_us (None: not in file)
 
 
 def encode_attr(value: Any) -> Any:

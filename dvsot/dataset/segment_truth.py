@@ -51,8 +51,8 @@ def interpolated_rows(t_samples: np.ndarray, rows: np.ndarray, ends: np.ndarray)
 
 
 def interpolated_visibility(t_samples: np.ndarray, visibility: np.ndarray, ends: np.ndarray) -> np.ndarray:
-    """A share (0..1: the visible fraction, the truncation) sampled at t_samples (us) taken at the segment ends (us), linear between samples,
-    float32; NaN outside the track."""
+    """A share (0..1: the visible fraction, the truncation) sampled at t_samples (us) taken at the segment ends (us),
+    linear between samples, float32; NaN outside the track."""
     columns = np.repeat(np.asarray(visibility)[:, None], 4, 1)  # interpolate_boxes works on 4 columns
     return interpolate_boxes(t_samples, columns, ends)[:, 0].astype(np.float32)
 

@@ -357,7 +357,7 @@ class BlenderScene:
         return luma, amodal, objects == TARGET_INDEX, objects
 
     def _render_passes(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """(luma float32 HxW, object ids u1 HxW, the rendered amodal target mask or None in raster mode) at t seconds."""
+        """(luma float32 HxW, object ids u1 HxW, the rendered amodal target mask or None in raster mode) at t (s)."""
         import OpenEXR
 
         self.set_time(t)
