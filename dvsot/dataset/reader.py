@@ -219,6 +219,12 @@ class Dataset:
             if len(rows[name]) and int(rows[name].max()) > self.width * self.height:
                 raise Damaged(f"/objects/{name} holds {int(rows[name].max())}, more than the sensor's "
                               f"{self.width * self.height} pixels")
+        # every pixel of the index pass holds an id of the table, so each sample's visible counts fill the sensor
+        total = rows["px_visible"].astype(np.int64).sum(axis=1)
+        off = np.flatnonzero(total != self.width * self.height)
+        if len(off):
+            raise Damaged(f"/objects/px_visible of sample {int(off[0])} adds up to {int(total[off[0]])} pixels, "
+                          f"not the sensor's {self.width * self.height} (an id outside /objects/id, or a damaged row)")
         for name in ("boxes_amodal", "boxes_visible"):
             problem = box_problem(rows[name].reshape(-1, 4), self.width, self.height,
                                   lambda i: f"sample {i // k}, object id {self.objects[i % k]['id']}")

@@ -325,6 +325,9 @@ class DatasetWriter:
             n = len(a)
             if name in ("visibility", "truncation") and np.any((a < 0) | (a > 1)):
                 raise ValueError(f"object rows {name} must lie in 0..1 (NaN: no geometry)")
+            if name == "px_visible" and np.any(a.astype(np.int64).sum(axis=1) != self.width * self.height):
+                raise ValueError("object rows px_visible do not add up to the sensor's pixels: the index image "
+                                 "holds an id outside the object table")
             dtype = np.uint32 if name.startswith("px") else np.float32
             self._object_rows[name].append(a.astype(dtype))
 

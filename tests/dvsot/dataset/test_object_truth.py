@@ -112,6 +112,7 @@ DAMAGE = [
     ("objects/visibility", _edit("objects/visibility", lambda v: v * 3), "outside 0..1"),
     ("objects/truncation", _edit("objects/truncation", lambda v: v - 1), "outside 0..1"),
     ("objects/px_visible", _edit("objects/px_visible", lambda v: v[:, :3]), "3 objects per sample"),
+    ("objects/px_visible", _edit("objects/px_visible", lambda v: v // 2), "not the sensor's 384"),
     ("objects/boxes_amodal", _edit("objects/boxes_amodal", lambda b: b[1:]), "has 8 rows"),
     ("objects/px_amodal", lambda f: f.__delitem__("objects/px_amodal"), "missing /objects/px_amodal"),
     ("boxes/truncation", _edit("boxes/truncation", lambda v: v + 2), "outside 0..1"),
