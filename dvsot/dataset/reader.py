@@ -257,7 +257,7 @@ class Dataset:
     def masks(self, i0: int, i1: int) -> np.ndarray:
         """The object index images of samples i0..i1-1 (u1 (n, height, width), ids of /objects/id), checked."""
         if not self.has_masks:
-            raise UserError(f"{self.path}: no /masks/objects (render with `dvsot generate --masks`)")
+            raise UserError(f"{self.path}: no /masks/objects (files rendered by `dvsot generate` keep them by default)")
         n = self._file["masks/objects"].shape[0]
         if not (0 <= i0 <= i1 <= n):
             raise IndexError(f"mask samples {i0}..{i1 - 1} out of range 0..{n - 1}")
