@@ -342,19 +342,20 @@ class DatasetWriter:
         img = img.astype(np.uint8, copy=False)
         if not self._known_ids[img].all():
             raise ValueError(f"mask id {int(img[~self._known_ids[img]][0])} is not in the object table")
-        if self._masks == 0:
-            self._file.create_group("masks").create_dataset(
-                "objects", shape=(0, self.height, self.width), maxshape=(None, self.height, self.width),
-                dtype=np.uint8, chunks=(1, self.height, self.width), fletcher32=self._checksum, **_mask_filter(
-                    self._filter))
         if self._io is None:
             self._io = OrderedWorker(f"write {self.path.name}")
         self._io.submit(self._write_mask, self._masks, img.copy())
         self._masks += 1
 
     def _write_mask(self, row: int, img: np.ndarray) -> None:
-        """Write mask row `row` (runs on the writer thread, in order with the event columns)."""
+        """Write mask row `row` (runs on the writer thread, in order with the event columns; the first creates the
+        dataset there, so no other thread touches the file)."""
         try:
+            if row == 0:
+                self._file.create_group("masks").create_dataset(
+                    "objects", shape=(0, self.height, self.width), maxshape=(None, self.height, self.width),
+                    dtype=np.uint8, chunks=(1, self.height, self.width), fletcher32=self._checksum,
+                    **_mask_filter(self._filter))
             ds = self._file["masks/objects"]
             ds.resize((row + 1, self.height, self.width))
             ds[row] = img
