@@ -88,6 +88,11 @@ def test_writer_refuses_a_mask_of_an_unknown_id_or_a_share_outside_0_1(tmp_path)
     with pytest.raises(ValueError, match="truncation must lie in 0..1"):
         with DatasetWriter(tmp_path / "t.h5", W, H, 2000) as w:
             w.append_boxes([0], [[1, 1, 2, 2]], truncation=[1.5])
+    _, rows, _ = scene_frames()
+    bad = dict(rows[0], px_visible=rows[0]["px_visible"] // 2)
+    with pytest.raises(ValueError, match="do not add up to the sensor's pixels"):
+        with DatasetWriter(tmp_path / "o.h5", W, H, 2000, objects=object_table([("wall", "occluder")])) as w:
+            w.append_object_rows(bad)
     assert not list(tmp_path.iterdir())
 
 
