@@ -38,6 +38,11 @@ def _text(info: dict) -> str:
         median = info["visibility_median"]
         lines.append(f"  visibility     median {'-' if median is None else f'{median:.2f}'} of the target's pixels seen, "
                      f"{info['segments_absent']} segments with the target absent")
+    if "segments_truncated" in info:
+        kept = [what for key, what in (("per_object_truth", "every object's boxes"), ("mask_samples", "object masks"))
+                if key in info]
+        lines.append(f"  truncation     {info['segments_truncated']} segments with part of the target off the sensor"
+                     + (f"; {' and '.join(kept)} per sample" if kept else ""))
     for row in info.get("objects", ()):
         lines.append(f"  {'objects' if row is info['objects'][0] else '':<15}{row['id']:>3} {one_line(row['name'])} "
                      f"({row['role']}): {row['events']:,} events, {100 * row['share']:.1f}%")

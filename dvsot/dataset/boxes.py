@@ -125,3 +125,66 @@ def box_problem(xywh: np.ndarray, width: int, height: int, row_name=lambda i: f"
     return (f"{row_name(i)} is x={x} y={y} w={w} h={h}; a box is finite with w, h >= {MIN_BOX_SIDE_PX:g} px and inside "
             f"[{-width}, {2 * width}] x [{-height}, {2 * height}] px (the {width}x{height} sensor and its own size "
             f"around it), or four NaNs for no target")
+
+
+def truncation_share(on_sensor_px: float, whole_px: float) -> float:
+    """The share (0..1) of a silhouette's area (pixels) that lies off the sensor; 1 where it has none (nothing of it
+    in front of the camera, or too small to cover a pixel centre)."""
+    if whole_px <= 0:
+        return 1.0
+    return float(min(1.0, max(0.0, 1.0 - on_sensor_px / whole_px)))
+
+
+def label_boxes(index_image: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(boxes (K, 4) float32 xywh pixels, counts (K,) int64): the upright box around each id's pixels in an object
+    index image (u1, height x width) and its pixel count; a NaN box where an id has no pixel.
+
+    The box is box_from_mask's of the id's mask (every pixel's bounding rectangle), for every id in one pass.
+    """
+    img = np.asarray(index_image)
+    H, W = img.shape
+    ids = np.asarray(ids, np.int64)
+    flat = img.astype(np.intp, copy=False)
+    counts = np.bincount(flat.ravel(), minlength=256)
+    cols = np.zeros((256, W), bool)
+    rows = np.zeros((256, H), bool)
+    cols[flat, np.arange(W)[None, :]] = True
+    rows[flat, np.arange(H)[:, None]] = True
+    c, r = cols[ids], rows[ids]
+    found = c.any(axis=1)
+    x0, x1 = c.argmax(axis=1), W - 1 - c[:, ::-1].argmax(axis=1)
+    y0, y1 = r.argmax(axis=1), H - 1 - r[:, ::-1].argmax(axis=1)
+    boxes = np.stack([x0, y0, x1 - x0 + 1, y1 - y0 + 1], axis=1).astype(np.float32)
+    boxes[~found] = np.nan
+    return boxes, counts[ids].astype(np.int64)
+
+
+def object_rows(index_image: np.ndarray, ids: np.ndarray,
+                amodal: dict[int, tuple[np.ndarray, float, float]]) -> dict[str, np.ndarray]:
+    """Every object's ground truth at one sample, one row per id of the object table (ids (K,)), as /objects stores it.
+
+    index_image: the render's object index pass (u1 height x width, occluders kept); amodal: per id with geometry,
+    (its amodal mask on the sensor (bool height x width), its silhouette's area on the sensor and in all (pixels,
+    dvsot.render.raster.silhouette_coverage)). Returns boxes_amodal, boxes_visible (K, 4) float32 xywh pixels (NaN =
+    none), px_amodal, px_visible (K,) uint32, visibility (K,) float32 (as mask_visibility: visible over amodal pixels
+    on the sensor, 0 where none) and truncation (K,) float32 (truncation_share); ids without geometry (background,
+    noise) get NaN amodal boxes, visibility and truncation, and px_amodal 0.
+    """
+    ids = np.asarray(ids, np.int64)
+    boxes_visible, px_visible = label_boxes(index_image, ids)
+    k = len(ids)
+    boxes_amodal = np.full((k, 4), np.nan, np.float32)
+    px_amodal = np.zeros(k, np.uint32)
+    visibility = np.full(k, np.nan, np.float32)
+    truncation = np.full(k, np.nan, np.float32)
+    for j, i in enumerate(ids):
+        if int(i) not in amodal:
+            continue
+        mask, on, whole = amodal[int(i)]
+        n = int(np.count_nonzero(mask))
+        boxes_amodal[j] = box_from_mask(mask)
+        px_amodal[j] = n
+        visibility[j] = min(1.0, px_visible[j] / n) if n else 0.0
+        truncation[j] = truncation_share(on, whole)
+    return {"boxes_amodal": boxes_amodal, "boxes_visible": boxes_visible, "px_amodal": px_amodal,
+            "px_visible": px_visible.astype(np.uint32), "visibility": visibility, "truncation": truncation}

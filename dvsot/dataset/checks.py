@@ -16,6 +16,10 @@ _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers"
                "f": "floats"}
 
 
+# LAYOUT's shape codes: (how a message writes it, the number of axes)
+_SHAPES = {1: ("(N,)", 1), 2: ("(N, 4)", 2), "NK4": ("(N, K, 4)", 3), "NK": ("(N, K)", 2), "NHW": ("(N, H, W)", 3)}
+
+
 class Damaged(Exception):
     """A broken invariant of the file format; Dataset turns it into a UserError naming the file."""
 
@@ -43,8 +47,9 @@ def check_layout(f: h5py.File) -> None:
             raise Damaged(f"/{name} is a {type(obj).__name__.lower()}, not a dataset")
         if obj.dtype.kind not in kinds:
             raise Damaged(f"/{name} has dtype {obj.dtype}, expected {_KIND_WORDS[kinds]}")
-        if obj.ndim != rank or (rank == 2 and obj.shape[1] != 4):
-            raise Damaged(f"/{name} has shape {obj.shape}, expected {'(N,)' if rank == 1 else '(N, 4)'}")
+        want, ndim = _SHAPES[rank]
+        if obj.ndim != ndim or (obj.shape[-1] != 4 and rank in (2, "NK4")):
+            raise Damaged(f"/{name} has shape {obj.shape}, expected {want}")
     for group in SAME_ROWS:
         rows = {name: f[name].shape[0] for name in group if name in f}
         first = group[0]

@@ -22,6 +22,16 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /segments/visibility   f4  (M,) the same at each segment's end, linear between samples (NaN outside the track)
     /segments/absent       u1  (M,) 1 = nothing of the target visible at the segment's end (its visible box NaN)
                                or no amodal box (outside the sensor)
+    /boxes/truncation      f4  (N,) rendered scenes: the share of the target's whole (amodal) silhouette off the sensor
+    /segments/truncation   f4  (M,) the same at each segment's end, linear between samples (NaN outside the track)
+    /objects/boxes_amodal  f4  (N, K, 4) per sample and object table row: the object's amodal box on the sensor
+                               (NaN for rows without geometry: background, noise)
+    /objects/boxes_visible f4  (N, K, 4) the box of the object's pixels in the render's object index pass
+    /objects/px_amodal     u4  (N, K) amodal pixels on the sensor; /objects/px_visible u4 (N, K) visible pixels
+    /objects/visibility    f4  (N, K) px_visible / px_amodal (0..1, 0 where no amodal pixel; NaN: no geometry)
+    /objects/truncation    f4  (N, K) share of the object's whole silhouette off the sensor (0..1; NaN: no geometry)
+    /masks/objects         u1  (N, H, W) the object index pass of every sample (ids of /objects/id), one gzip chunk
+                               per sample (`dvsot generate` writes them by default)
     /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
     /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
     /objects/id            u1  (K,) the ids /events/object uses (present exactly when it is)
@@ -85,7 +95,8 @@ COMPRESSIONS: dict[str | None, dict[str, Any]] = {
 # Datasets every file has.
 REQUIRED = ("events/x", "events/y", "events/t", "events/p", "events/ms_to_idx",
             "boxes/t", "boxes/xywh", "boxes/xywh_visible", "segments/t", "segments/xywh")
-# Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: (N,) or (N, 4).
+# Each known dataset's allowed numpy dtype kinds ('u'/'i' integer, 'b' bool, 'f' float) and shape: 1 (N,), 2 (N, 4),
+# "NK4" (N, K, 4) and "NK" (N, K) with K the object table's rows, "NHW" (N, height, width).
 LAYOUT: dict[str, tuple[str, int]] = {
     "events/x": ("ui", 1), "events/y": ("ui", 1), "events/t": ("ui", 1), "events/p": ("uib", 1),
     "events/signal": ("uib", 1), "events/noise_kind": ("ui", 1), "events/ms_to_idx": ("ui", 1), "ms_to_idx": ("ui", 1),
@@ -94,25 +105,51 @@ LAYOUT: dict[str, tuple[str, int]] = {
     "segments/annotation": ("i", 1), "events/object": ("ui", 1), "objects/id": ("ui", 1),
     "objects/name": ("S", 1), "objects/role": ("S", 1),
     "boxes/visibility": ("f", 1), "segments/visibility": ("f", 1), "segments/absent": ("uib", 1),
+    "boxes/truncation": ("f", 1), "segments/truncation": ("f", 1),
+    "objects/boxes_amodal": ("f", "NK4"), "objects/boxes_visible": ("f", "NK4"), "objects/px_amodal": ("ui", "NK"),
+    "objects/px_visible": ("ui", "NK"), "objects/visibility": ("f", "NK"), "objects/truncation": ("f", "NK"),
+    "masks/objects": ("u", "NHW"),
 }
+# The per-object ground truth: a file has all of these or none.
+OBJECT_TRUTH = ("boxes_amodal", "boxes_visible", "px_amodal", "px_visible", "visibility", "truncation")
 MAX_PIXELS = 1 << 16  # x and y are stored as u2
 # Datasets that must have as many rows as the first one of their group.
 SAME_ROWS = (("events/t", "events/x", "events/y", "events/p", "events/signal", "events/noise_kind", "events/object"),
              ("objects/id", "objects/name", "objects/role"),
-             ("boxes/t", "boxes/xywh", "boxes/xywh_visible", "boxes/visibility"),
+             ("boxes/t", "boxes/xywh", "boxes/xywh_visible", "boxes/visibility", "boxes/truncation",
+              *(f"objects/{name}" for name in OBJECT_TRUTH), "masks/objects"),
              ("segments/xywh", "segments/t", "segments/xywh_visible", "segments/annotation", "segments/visibility",
-              "segments/absent"))
+              "segments/absent", "segments/truncation"))
 
 
 @dataclass(frozen=True)
 class BoxTrack:
     """The target's box at every rendered sample: t (microseconds), xywh and xywh_visible (pixels, NaN = absent),
-    visibility (visible / amodal target pixels, 0..1; None where the file has none)."""
+    visibility (visible / amodal target pixels on the sensor, 0..1) and truncation (the share of the target's whole
+    silhouette off the sensor, 0..1); None where the file has none."""
 
     t: np.ndarray
     xywh: np.ndarray
     xywh_visible: np.ndarray
     visibility: np.ndarray | None = None
+    truncation: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ObjectTrack:
+    """Every object's ground truth at every rendered sample (/objects): ids (K,) the object table's ids, in the
+    order of the K axis; t (N,) microseconds; boxes_amodal, boxes_visible (N, K, 4) xywh pixels (NaN = none);
+    px_amodal, px_visible (N, K) pixels on the sensor; visibility, truncation (N, K) 0..1 (NaN for the rows without
+    geometry: background, noise)."""
+
+    ids: np.ndarray
+    t: np.ndarray
+    boxes_amodal: np.ndarray
+    boxes_visible: np.ndarray
+    px_amodal: np.ndarray
+    px_visible: np.ndarray
+    visibility: np.ndarray
+    truncation: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -127,6 +164,7 @@ class Segment:
     box_visible: np.ndarray | None = None
     visibility: float | None = None  # visible / amodal target pixels at t1_us (None: not in the file)
     absent: bool | None = None  # nothing of the target visible at t1_us, or outside the sensor
+    truncation: float | None = None  # share of the target's silhouette off the sensor at t1_us (None: not in file)
 
 
 def encode_attr(value: Any) -> Any:

@@ -27,6 +27,7 @@ def dataset_info(path: str | os.PathLike) -> dict:
                 counts = np.bincount(batch.noise_kind, minlength=len(NOISE_KINDS))
                 kinds = counts if kinds is None else kinds + counts
         n_noise = n_noise if has_signal else None
+        ds.verify_masks()
         seg = ds.segment_boxes()
         have = ~np.isnan(seg).any(axis=1)
         duration = ds.duration_us / 1e6
@@ -52,6 +53,13 @@ def dataset_info(path: str | os.PathLike) -> dict:
             vis = ds.segment_visibility()
             out["segments_absent"] = int(absent.sum())
             out["visibility_median"] = float(np.nanmedian(vis)) if np.isfinite(vis).any() else None
+        trunc = ds.segment_truncation()
+        if trunc is not None:  # the share of the target off the sensor (docs/dataset-files.md)
+            out["segments_truncated"] = int(np.count_nonzero(trunc > 0))
+        if ds.has_masks:
+            out["mask_samples"] = int(len(ds.boxes().t))
+        if ds.object_track() is not None:
+            out["per_object_truth"] = True
         if ds.annotated:  # a recording: segments scored against an annotation (docs/benchmarks.md)
             out["segments_matched_to_annotation"] = int(ds.segment_scored().sum())
         if have.any():

@@ -14,10 +14,11 @@ import numpy as np
 from dvsot.core import bounds
 from dvsot.dataset.boxes import box_problem
 from dvsot.dataset.digest import DIGEST_ATTR, digest_problem
-from dvsot.dataset.format import FORMAT, FORMAT_VERSION, MAX_PIXELS, BoxTrack, Segment, decode_attr, read_attrs
+from dvsot.dataset.format import (FORMAT, FORMAT_VERSION, MAX_PIXELS, OBJECT_TRUTH, BoxTrack, ObjectTrack, Segment,
+                                  decode_attr, read_attrs)
 from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, times_problem,
-                                      truth_problem)
+                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, rows_problem,
+                                      times_problem, truth_problem)
 from dvsot.core.errors import UserError, exception_line
 from dvsot.events.batch import NOISE_KINDS
 from dvsot.events import EventBatch
@@ -120,6 +121,16 @@ class Dataset:
                 raise Damaged(f"/segments/absent holds {self._seg_absent[bad[0]]} at segment {int(bad[0])}, "
                               "expected 0 or 1")
             self._seg_absent = self._seg_absent.astype(bool)
+        self._seg_truncation = None
+        if "boxes/truncation" in f or "segments/truncation" in f:
+            for name in ("boxes/truncation", "segments/truncation"):
+                if name not in f:
+                    raise Damaged(f"missing /{name} (a file with truncation has /boxes/truncation and "
+                                  "/segments/truncation)")
+                v = self._load(name)
+                if np.any(v < 0) or np.any(v > 1) or (name == "boxes/truncation" and np.isnan(v).any()):
+                    raise Damaged(f"/{name} holds values outside 0..1")
+            self._seg_truncation = self._load("segments/truncation").astype(np.float32)
         for name in ("segments/xywh", "segments/xywh_visible", "boxes/xywh", "boxes/xywh_visible"):
             rows = self._seg_box if name == "segments/xywh" else self._load(name) if name in f else None
             problem = None if rows is None else box_problem(rows, self.width, self.height)
@@ -136,6 +147,8 @@ class Dataset:
             raise Damaged(f"/t_offset is {self.t_offset_us} us, but root attribute 't_offset_us' (covered by "
                           f"'{DIGEST_ATTR}') is {self.attrs['t_offset_us']} us")
         self._object_table(f)
+        self._object_truth(f, n_boxes)
+        self._check_masks(f, n_boxes)
         self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
                         "y": (self.height, f"expected 0 <= y < height {self.height}"),
                         "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1"),
@@ -182,6 +195,112 @@ class Dataset:
             raise Damaged(f"/events/object holds id {int(stray[0])} ({int(counts[stray[0]])} events), "
                           f"which /objects/id does not list")
         self._object_counts = counts
+
+    def _object_truth(self, f: h5py.File, n_boxes: int) -> None:
+        """Check /objects' per-sample ground truth (all of it or none, one row per sample and table id, shares in
+        0..1 or NaN, boxes near the sensor) and keep it."""
+        self._objects_track: ObjectTrack | None = None
+        present = [name for name in OBJECT_TRUTH if f"objects/{name}" in f]
+        if not present:
+            return
+        if len(present) != len(OBJECT_TRUTH):
+            missing = next(name for name in OBJECT_TRUTH if name not in present)
+            raise Damaged(f"missing /objects/{missing} (a file with per-object ground truth has all of "
+                          f"{', '.join('/objects/' + n for n in OBJECT_TRUTH)})")
+        if self.objects is None:
+            raise Damaged(f"/objects/{present[0]} without the object table (/objects/id, /events/object)")
+        k = len(self.objects)
+        for name in OBJECT_TRUTH:
+            shape = f[f"objects/{name}"].shape
+            if shape[1] != k:
+                raise Damaged(f"/objects/{name} has {shape[1]} objects per sample, /objects/id lists {k}")
+        problem = rows_problem("objects/visibility", n_boxes * k, bounds.MAX_BOX_ROWS, "object rows per file")
+        if problem:
+            raise Damaged(problem)
+        rows = {name: self._load(f"objects/{name}") for name in OBJECT_TRUTH}
+        for name in ("visibility", "truncation"):
+            v = rows[name]
+            if np.any(v < 0) or np.any(v > 1):
+                raise Damaged(f"/objects/{name} holds values outside 0..1")
+        for name in ("px_amodal", "px_visible"):
+            if len(rows[name]) and int(rows[name].max()) > self.width * self.height:
+                raise Damaged(f"/objects/{name} holds {int(rows[name].max())}, more than the sensor's "
+                              f"{self.width * self.height} pixels")
+        # every pixel of the index pass holds an id of the table, so each sample's visible counts fill the sensor
+        total = rows["px_visible"].astype(np.int64).sum(axis=1)
+        off = np.flatnonzero(total != self.width * self.height)
+        if len(off):
+            raise Damaged(f"/objects/px_visible of sample {int(off[0])} adds up to {int(total[off[0]])} pixels, "
+                          f"not the sensor's {self.width * self.height} (an id outside /objects/id, or a damaged row)")
+        for name in ("boxes_amodal", "boxes_visible"):
+            problem = box_problem(rows[name].reshape(-1, 4), self.width, self.height,
+                                  lambda i: f"sample {i // k}, object id {self.objects[i % k]['id']}")
+            if problem:
+                raise Damaged(f"/objects/{name} {problem}")
+        ids = np.array([row["id"] for row in self.objects], np.uint8)
+        self._objects_track = ObjectTrack(ids, self._load("boxes/t"), *(rows[name] for name in OBJECT_TRUTH))
+
+    def _check_masks(self, f: h5py.File, n_boxes: int) -> None:
+        """Check /masks/objects' shape against the samples and the sensor; its ids are checked as frames are read."""
+        self.has_masks = "masks/objects" in f
+        if not self.has_masks:
+            return
+        ds = f["masks/objects"]
+        if self.objects is None:
+            raise Damaged("/masks/objects without the object table (/objects/id, /events/object)")
+        if ds.dtype != np.uint8:
+            raise Damaged(f"/masks/objects has dtype {ds.dtype}, expected uint8")
+        if ds.shape[1:] != (self.height, self.width):
+            raise Damaged(f"/masks/objects holds {ds.shape[2]}x{ds.shape[1]} images, the sensor is "
+                          f"{self.width}x{self.height}")
+
+    def object_track(self) -> ObjectTrack | None:
+        """Every object's boxes, pixel counts, visibility and truncation at every sample (/objects), or None."""
+        o = self._objects_track
+        if o is None:
+            return None
+        return ObjectTrack(*(np.array(getattr(o, name)) for name in ObjectTrack.__dataclass_fields__))
+
+    def masks(self, i0: int, i1: int) -> np.ndarray:
+        """The object index images of samples i0..i1-1 (u1 (n, height, width), ids of /objects/id), checked."""
+        if not self.has_masks:
+            raise UserError(f"{self.path}: no /masks/objects (files rendered by `dvsot generate` keep them by default)")
+        n = self._file["masks/objects"].shape[0]
+        if not (0 <= i0 <= i1 <= n):
+            raise IndexError(f"mask samples {i0}..{i1 - 1} out of range 0..{n - 1}")
+        try:
+            m = self._file["masks/objects"][i0:i1]
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise self._damaged(f"cannot read /masks/objects samples {i0}..{i1 - 1}, its stored data is corrupt "
+                                f"({exception_line(exc, kind=False)})") from None
+        known = self._known_ids[m]
+        if not known.all():
+            j = np.argwhere(~known)[0]
+            raise self._damaged(f"/masks/objects holds id {int(m[tuple(j)])} at sample {i0 + int(j[0])}, which "
+                                f"/objects/id does not list")
+        return m
+
+    def verify_masks(self) -> None:
+        """Read every /masks/objects sample and check its ids (a full scan; nothing where the file has no masks)."""
+        if not self.has_masks:
+            return
+        n = self._file["masks/objects"].shape[0]
+        for i0 in range(0, n, 64):
+            self.masks(i0, min(i0 + 64, n))
+
+    def mask(self, i: int) -> np.ndarray:
+        """The object index image of sample i (u1 (height, width)): the pixels of the target are `== 1`."""
+        return self.masks(i, i + 1)[0]
+
+    def sample_at(self, t_us: int) -> int:
+        """The row of /boxes (and /masks, /objects) rendered nearest to t_us (microseconds; the earlier on a tie)."""
+        t = self._load("boxes/t")
+        if len(t) == 0:
+            raise UserError(f"{self.path}: no rendered samples (/boxes/t is empty)")
+        j = int(np.searchsorted(t, t_us))
+        if j == len(t) or (j > 0 and t_us - t[j - 1] <= t[j] - t_us):
+            j -= 1
+        return j
 
     def object_counts(self) -> dict[int, int] | None:
         """Events per object id of the table (every id listed, zeros kept), or None for a file without labels."""
@@ -298,6 +417,7 @@ class Dataset:
         if stored is None:
             for _ in self.chunks():
                 pass
+            self.verify_masks()
             return
         events = self._file["events"]
         for name, digests in stored.items():
@@ -321,7 +441,8 @@ class Dataset:
         vis = None if self._seg_vis is None else self._seg_vis[i].copy()
         visibility = None if self._seg_visibility is None else float(self._seg_visibility[i])
         absent = None if self._seg_absent is None else bool(self._seg_absent[i])
-        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis, visibility, absent)
+        truncation = None if self._seg_truncation is None else float(self._seg_truncation[i])
+        return Segment(i, t0, t1, self.events(t0, t1), self._seg_box[i].copy(), vis, visibility, absent, truncation)
 
     def segments(self, start: int = 0, stop: int | None = None) -> Iterator[Segment]:
         """Segments start..stop-1 in order."""
@@ -356,11 +477,17 @@ class Dataset:
         """Per segment, True where nothing of the target is visible at its end or it is outside the sensor, or None."""
         return None if self._seg_absent is None else self._seg_absent.copy()
 
+    def segment_truncation(self) -> np.ndarray | None:
+        """Per segment, the share of the target's whole silhouette off the sensor at its end (0..1, NaN outside the
+        track), or None (not in the file)."""
+        return None if self._seg_truncation is None else self._seg_truncation.copy()
+
     def boxes(self) -> BoxTrack:
         """The box track at every rendered sample (or annotation): t (microseconds), xywh and xywh_visible (pixels),
-        visibility (None where the file has none)."""
+        visibility and truncation (None where the file has none)."""
         vis = self._load("boxes/visibility") if self._seg_visibility is not None else None
-        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")), vis)
+        trunc = self._load("boxes/truncation") if self._seg_truncation is not None else None
+        return BoxTrack(*(self._load(f"boxes/{name}") for name in ("t", "xywh", "xywh_visible")), vis, trunc)
 
 
 

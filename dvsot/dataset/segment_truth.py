@@ -20,7 +20,8 @@ from dvsot.dataset.format import BoxTrack
 class SegmentTruth:
     """What /segments holds: t (M,) end times in microseconds; xywh, xywh_visible (M, 4) float32 pixels, NaN =
     absent; annotation (M,) the matched /boxes row or -1 (annotated files only); visibility (M,) float32 0..1 and
-    absent (M,) bool (only where the track has visibility)."""
+    absent (M,) bool (only where the track has visibility); truncation (M,) float32 0..1 (only where the track has
+    truncation)."""
 
     t: np.ndarray
     xywh: np.ndarray
@@ -28,6 +29,7 @@ class SegmentTruth:
     annotation: np.ndarray | None = None
     visibility: np.ndarray | None = None
     absent: np.ndarray | None = None
+    truncation: np.ndarray | None = None
 
 
 def segment_ends(duration_us: int, segment_us: int) -> np.ndarray:
@@ -49,8 +51,8 @@ def interpolated_rows(t_samples: np.ndarray, rows: np.ndarray, ends: np.ndarray)
 
 
 def interpolated_visibility(t_samples: np.ndarray, visibility: np.ndarray, ends: np.ndarray) -> np.ndarray:
-    """The visible fraction (0..1) sampled at t_samples (us) taken at the segment ends (us), linear between samples,
-    float32; NaN outside the track."""
+    """A share (0..1: the visible fraction, the truncation) sampled at t_samples (us) taken at the segment ends (us),
+    linear between samples, float32; NaN outside the track."""
     columns = np.repeat(np.asarray(visibility)[:, None], 4, 1)  # interpolate_boxes works on 4 columns
     return interpolate_boxes(t_samples, columns, ends)[:, 0].astype(np.float32)
 
@@ -71,7 +73,10 @@ def segment_truth(track: BoxTrack, duration_us: int, segment_us: int, annotated:
     else:
         xywh = interpolated_rows(track.t, track.xywh, ends)
         visible = interpolated_rows(track.t, track.xywh_visible, ends)
+    def share(values: np.ndarray | None) -> np.ndarray | None:
+        return None if values is None else interpolated_visibility(track.t, values, ends)
+
     if track.visibility is None:
-        return SegmentTruth(ends, xywh, visible, match)
-    return SegmentTruth(ends, xywh, visible, match, interpolated_visibility(track.t, track.visibility, ends),
-                        absent_at(xywh, visible))
+        return SegmentTruth(ends, xywh, visible, match, truncation=share(track.truncation))
+    return SegmentTruth(ends, xywh, visible, match, share(track.visibility), absent_at(xywh, visible),
+                        share(track.truncation))

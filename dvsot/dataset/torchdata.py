@@ -14,9 +14,14 @@ An item is (events, box): the segment's events as a structured array with fields
 box xywh (pixels, float32). `transform` maps the events (a tonic transform such as
 `tonic.transforms.ToFrame(sensor_size=data.sensor_size, n_time_bins=10)` works), `target_transform`
 the box. With `labels=True` (files with per-event labels, docs/events.md) an item is (events, box,
-objects, target_mask): objects the id of the object that made each event (u1, as long as the events,
+objects, target_mask, truth): objects the id of the object that made each event (u1, as long as the events,
 before any transform), target_mask a bool (height, width) array of the pixels where a target event fired
-in the segment; `collate_segments` gives the masks as one (B, H, W) tensor and the ids as a list.
+in the segment, and truth a dict of the rendered ground truth at the segment's end (docs/dataset-files.md):
+`silhouette` the target's rendered (visible) silhouette, bool (height, width), from the object index pass of
+the sample nearest the segment's end (/masks/objects; None for a file without masks), `visibility` and
+`truncation` (float, 0..1; NaN where the file has none) and `absent` (bool; False where the file has none).
+`collate_segments` gives the masks as one (B, H, W) tensor, the ids as a list, and truth as a dict of
+tensors (silhouettes stacked when every item has one, else a list).
 The object holds only paths and an index, so it pickles; each process
 opens the files it reads on first use and keeps them open (HDF5 handles must not cross a fork).
 No torch import at module level: DataLoader takes any object with __len__ and __getitem__, and only
@@ -102,7 +107,7 @@ class SegmentDataset:
             box = self.target_transform(box)
         if not self.labels:
             return events, box
-        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height, ds.target_id)
+        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height, ds.target_id), segment_labels(ds, seg)
 
     def close(self) -> None:
         """Close the files this process opened."""
@@ -110,6 +115,15 @@ class SegmentDataset:
             for ds in self._open.values():
                 ds.close()
         self._open = {}
+
+
+def segment_labels(ds: Dataset, seg: Any) -> dict[str, Any]:
+    """The rendered ground truth of a segment (dvsot.dataset.format.Segment) of ds: the target's silhouette at the
+    sample nearest its end (bool (height, width), None without /masks/objects), visibility, truncation, absent."""
+    silhouette = ds.mask(ds.sample_at(seg.t1_us)) == ds.target_id if ds.has_masks else None
+    nan = float("nan")
+    return {"silhouette": silhouette, "visibility": nan if seg.visibility is None else seg.visibility,
+            "truncation": nan if seg.truncation is None else seg.truncation, "absent": bool(seg.absent)}
 
 
 def target_mask(events, width: int, height: int, target_id: int) -> np.ndarray:
@@ -137,7 +151,19 @@ def collate_segments(batch: list[tuple[Any, ...]]) -> tuple[Any, ...]:
     if events and all(isinstance(e, torch.Tensor) and e.shape == events[0].shape for e in events):
         events = torch.stack(events)
     boxes = [b if isinstance(b, torch.Tensor) else torch.as_tensor(np.asarray(b, np.float32)) for _, b, *_ in batch]
-    if batch and len(batch[0]) == 4:  # labels=True: per-event ids (a list: lengths differ) and the masks stacked
+    if batch and len(batch[0]) == 5:  # labels=True: per-event ids (a list: lengths differ), masks stacked, truth
         return (events, torch.stack(boxes), [tensor(item[2]) for item in batch],
-                torch.stack([tensor(item[3]) for item in batch]))
+                torch.stack([tensor(item[3]) for item in batch]), collate_truth([item[4] for item in batch]))
     return events, torch.stack(boxes)
+
+
+def collate_truth(items: list[dict[str, Any]]) -> dict[str, Any]:
+    """segment_labels' dicts as one: visibility, truncation (float32) and absent (bool) tensors (B,), silhouettes a
+    (B, H, W) bool tensor when every item has one, else a list (None for a file without masks)."""
+    import torch
+
+    sil = [item["silhouette"] for item in items]
+    return {"silhouette": torch.from_numpy(np.stack(sil)) if all(m is not None for m in sil) else sil,
+            "visibility": torch.tensor([item["visibility"] for item in items], dtype=torch.float32),
+            "truncation": torch.tensor([item["truncation"] for item in items], dtype=torch.float32),
+            "absent": torch.tensor([item["absent"] for item in items], dtype=torch.bool)}

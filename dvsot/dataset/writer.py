@@ -15,8 +15,8 @@ from dvsot.core import bounds
 from dvsot.dataset.boxes import box_problem
 from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
 from dvsot.runtime.threads import OrderedWorker
-from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, BoxTrack, attrs_problem, read_attrs,
-                                  write_attr, write_attrs)
+from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, OBJECT_TRUTH, BoxTrack, attrs_problem,
+                                  read_attrs, write_attr, write_attrs)
 from dvsot.dataset.reader import Dataset, chunk_digest
 from dvsot.dataset.segment_truth import SegmentTruth, segment_truth
 from dvsot.core.defaults import SEGMENT_US
@@ -26,6 +26,15 @@ from dvsot.events import EventBatch
 from dvsot.dataset.h5chunks import encode_chunk
 
 _EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
+
+
+def _mask_filter(event_filter: dict[str, Any]) -> dict[str, Any]:
+    """The filters of /masks/objects given the event columns': gzip at level 4 without the shuffle (one byte per
+    pixel: nothing to shuffle; level 4 stores half of level 1's bytes at 0.9 ms per 320x240 sample, docs/results.md),
+    else the same filter."""
+    if event_filter.get("compression") == "gzip":
+        return {"compression": "gzip", "compression_opts": 4}
+    return dict(event_filter)
 
 
 def _readlink(path: str) -> str | None:
@@ -109,6 +118,9 @@ class DatasetWriter:
         self._box_xywh: list[np.ndarray] = []
         self._box_vis: list[np.ndarray] = []
         self._visibility: list[np.ndarray | None] = []
+        self._truncation: list[np.ndarray | None] = []
+        self._object_rows: dict[str, list[np.ndarray]] = {name: [] for name in OBJECT_TRUTH}
+        self._masks = 0  # object index images appended (/masks/objects rows)
         self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
         # per gzip column, the digest of every chunk handed to HDF5, in order: the read-back compares them
         self._digests: dict[str, list[bytes]] = {}
@@ -266,26 +278,90 @@ class DatasetWriter:
         except OSError:
             pass
 
-    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None, visibility: Any = None) -> None:
+    def append_boxes(self, t_us: Any, xywh: Any, xywh_visible: Any = None, visibility: Any = None,
+                     truncation: Any = None) -> None:
         """Append box rows at times t_us (microseconds); xywh (N,4) pixels, NaN = absent; visible defaults to amodal;
-        visibility (N,): visible / amodal target pixels, 0..1 (every call gives it or none does)."""
+        visibility (N,): visible / amodal target pixels on the sensor, 0..1; truncation (N,): the share of the
+        target's whole silhouette off the sensor, 0..1 (each: every call gives it or none does)."""
         t = np.atleast_1d(np.asarray(t_us, dtype=np.int64))
         b = np.asarray(xywh, dtype=np.float32).reshape(-1, 4)
         v = b if xywh_visible is None else np.asarray(xywh_visible, dtype=np.float32).reshape(-1, 4)
         if not (len(t) == len(b) == len(v)):
             raise ValueError("box times and rows differ in length")
-        if visibility is not None:
-            visibility = np.asarray(visibility, dtype=np.float32).reshape(-1)
-            if len(visibility) != len(t):
-                raise ValueError("box times and visibility differ in length")
-            if np.any(~((visibility >= 0) & (visibility <= 1))):
-                raise ValueError("visibility must lie in 0..1")
-        if self._visibility and (self._visibility[0] is None) != (visibility is None):
-            raise ValueError("either every box append gives visibility or none does")
+        shares = []
+        for what, values, kept in (("visibility", visibility, self._visibility),
+                                   ("truncation", truncation, self._truncation)):
+            if values is not None:
+                values = np.asarray(values, dtype=np.float32).reshape(-1)
+                if len(values) != len(t):
+                    raise ValueError(f"box times and {what} differ in length")
+                if np.any(~((values >= 0) & (values <= 1))):
+                    raise ValueError(f"{what} must lie in 0..1")
+            if kept and (kept[0] is None) != (values is None):
+                raise ValueError(f"either every box append gives {what} or none does")
+            shares.append(values)
         self._box_t.append(t)
         self._box_xywh.append(b)
         self._box_vis.append(v)
-        self._visibility.append(visibility)
+        self._visibility.append(shares[0])
+        self._truncation.append(shares[1])
+
+    def append_object_rows(self, rows: dict[str, Any]) -> None:
+        """Append every object's ground truth at n samples (dvsot.dataset.boxes.object_rows, stacked: (n, K, ...)),
+        K the object table's rows in its order; the file's /objects/<name> for each of OBJECT_TRUTH."""
+        if self._objects is None:
+            raise ValueError("per-object ground truth needs the writer's object table")
+        if set(rows) != set(OBJECT_TRUTH):
+            raise ValueError(f"object rows need exactly {', '.join(OBJECT_TRUTH)}, got {', '.join(sorted(rows))}")
+        k = len(self._objects)
+        n = None
+        for name in OBJECT_TRUTH:
+            a = np.asarray(rows[name])
+            tail = (k, 4) if name.startswith("boxes") else (k,)
+            if a.ndim == len(tail):
+                a = a[None]
+            if a.shape[1:] != tail or (n is not None and len(a) != n):
+                raise ValueError(f"object rows {name}: shape {a.shape}, expected (n, {', '.join(map(str, tail))})")
+            n = len(a)
+            if name in ("visibility", "truncation") and np.any((a < 0) | (a > 1)):
+                raise ValueError(f"object rows {name} must lie in 0..1 (NaN: no geometry)")
+            if name == "px_visible" and np.any(a.astype(np.int64).sum(axis=1) != self.width * self.height):
+                raise ValueError("object rows px_visible do not add up to the sensor's pixels: the index image "
+                                 "holds an id outside the object table")
+            dtype = np.uint32 if name.startswith("px") else np.float32
+            self._object_rows[name].append(a.astype(dtype))
+
+    def append_mask(self, index_image: Any) -> None:
+        """Append the next sample's object index image (u1 height x width, ids of the object table) to /masks/objects;
+        written on the writer thread, one gzip chunk per sample, so a long sequence's masks never sit in memory."""
+        if self._objects is None:
+            raise ValueError("masks need the writer's object table")
+        img = np.asarray(index_image)
+        if img.shape != (self.height, self.width):
+            raise ValueError(f"mask of shape {img.shape}, expected ({self.height}, {self.width})")
+        img = img.astype(np.uint8, copy=False)
+        if not self._known_ids[img].all():
+            raise ValueError(f"mask id {int(img[~self._known_ids[img]][0])} is not in the object table")
+        if self._io is None:
+            self._io = OrderedWorker(f"write {self.path.name}")
+        self._io.submit(self._write_mask, self._masks, img.copy())
+        self._masks += 1
+
+    def _write_mask(self, row: int, img: np.ndarray) -> None:
+        """Write mask row `row` (runs on the writer thread, in order with the event columns; the first creates the
+        dataset there, so no other thread touches the file)."""
+        try:
+            if row == 0:
+                self._file.create_group("masks").create_dataset(
+                    "objects", shape=(0, self.height, self.width), maxshape=(None, self.height, self.width),
+                    dtype=np.uint8, chunks=(1, self.height, self.width), fletcher32=self._checksum,
+                    **_mask_filter(self._filter))
+            ds = self._file["masks/objects"]
+            ds.resize((row + 1, self.height, self.width))
+            ds[row] = img
+        except BaseException:
+            self._discard_writes()
+            raise
 
     def close(self, duration_us: int | None = None) -> Path:
         """Finish the file (ms_to_idx, per-segment ground truth, attributes) and rename it into place."""
@@ -324,7 +400,11 @@ class DatasetWriter:
             if problem:
                 raise ValueError(f"boxes {what}: {problem}")
         visibility = np.concatenate(self._visibility) if self._visibility and self._visibility[0] is not None else None
-        return BoxTrack(t, xywh, visible, visibility)
+        truncation = np.concatenate(self._truncation) if self._truncation and self._truncation[0] is not None else None
+        for what, rows in (("masks", self._masks), ("object rows", sum(map(len, self._object_rows["visibility"])))):
+            if rows and rows != len(t):
+                raise ValueError(f"{rows} {what} for {len(t)} box samples")
+        return BoxTrack(t, xywh, visible, visibility, truncation)
 
     def _duration(self, duration_us: int | None, box_t: np.ndarray) -> int:
         """The file's duration in microseconds: the one given, checked against the events and boxes, or else the
@@ -368,12 +448,18 @@ class DatasetWriter:
             g.create_dataset("visibility", data=track.visibility, maxshape=(None,), **ck)
             s.create_dataset("visibility", data=truth.visibility, **ck)
             s.create_dataset("absent", data=truth.absent.astype(np.uint8), **ck)
+        if track.truncation is not None:
+            g.create_dataset("truncation", data=track.truncation, maxshape=(None,), **ck)
+            s.create_dataset("truncation", data=truth.truncation, **ck)
         if self._objects is not None:
             o = f.create_group("objects")
             o.create_dataset("id", data=np.array([r["id"] for r in self._objects], np.uint8), **ck)
             for key in ("name", "role"):  # fixed-length UTF-8: no heap a damaged file could point into
                 text = [str(r[key]).encode("utf-8") for r in self._objects]
                 o.create_dataset(key, data=np.array(text, dtype=f"S{max([1, *map(len, text)])}"), **ck)
+            if self._object_rows["visibility"]:
+                for name in OBJECT_TRUTH:
+                    o.create_dataset(name, data=np.concatenate(self._object_rows[name]), **ck, **self._filter)
 
     def _write_attributes(self, duration_us: int) -> None:
         """Write the root attributes and their digest."""

@@ -13,11 +13,11 @@ import numpy as np
 
 from dvsot import __version__
 from dvsot.runtime import interrupts
-from dvsot.dataset.boxes import box_from_mask, mask_visibility
+from dvsot.dataset.boxes import box_from_mask, mask_visibility, object_rows, truncation_share
 from dvsot.scene import SceneConfig
 from dvsot.dataset.format import attrs_problem
 from dvsot.core.errors import UserError
-from dvsot.events.labels import LabelledFrame, object_table
+from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
 from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest
 from dvsot.events import EventSimulator
 from dvsot.runtime.outputs import run_outputs, writing
@@ -80,6 +80,11 @@ def scene_object_table(cfg: SceneConfig) -> list[dict]:
                         target=cfg.target.name or "target")
 
 
+# Whether `dvsot generate` keeps the object index pass (/masks/objects) unless told: on, since its measured cost on
+# the quick-start scene at default settings is within 1.10x generate's time per sample and 1.3x the file's size
+# (docs/results.md, "Ground-truth masks")
+MASKS_BY_DEFAULT = True
+
 _FRAME = re.compile(r"^\d{6}\.npy$")
 
 
@@ -108,17 +113,24 @@ def _status(show: bool, text: str) -> None:
 
 
 def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progress: bool = True,
-             keep_frames: str | Path | None = None, preview: bool = False, labels: bool = True) -> dict:
+             keep_frames: str | Path | None = None, preview: bool = False, labels: bool = True,
+             masks: bool | None = None) -> dict:
     """Render the scene at motion-bounded times, simulate events and boxes, write the dataset file; a summary.
 
     labels: each event carries the id of the object that made it (/events/object, dvsot.events.labels),
-    from the render's object-index pass.
+    from the render's object-index pass; with them the file also holds every object's boxes, pixel counts,
+    visibility and truncation per sample (/objects/..., dvsot.dataset.boxes.object_rows).
+    masks: also keep that pass itself, one object index image per sample (/masks/objects); None: MASKS_BY_DEFAULT.
+    The target's truncation (/boxes/truncation) is always written.
 
     preview: also write <out_path>.gif (event frames with the box); the file, its preview and kept frames
     are renamed into place together, or none of them (dvsot.runtime.outputs).
     """
+    masks = MASKS_BY_DEFAULT if masks is None else bool(masks)
+    if masks and not labels:
+        raise UserError(f"{out_path}: masks are the object index pass the labels come from: they need labels")
     with run_outputs(run_manifest(out_path) if preview or keep_frames else None) as run:
-        summary = _generate(cfg, out_path, scene_text, progress, keep_frames, labels)
+        summary = _generate(cfg, out_path, scene_text, progress, keep_frames, labels, masks)
         if preview:
             from dvsot.dataset.preview import PREVIEW_SEGMENTS, write_preview
 
@@ -129,7 +141,7 @@ def generate(cfg: SceneConfig, out_path: str | Path, scene_text: str = "", progr
 
 
 def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress: bool,
-              keep_frames: str | Path | None, labels: bool = True) -> dict:
+              keep_frames: str | Path | None, labels: bool = True, masks: bool = False) -> dict:
     # a signal raised inside bpy's import leaves Blender half set up and the process dies of SIGSEGV at exit;
     # record it during the import and raise it after, like a signal during a render
     with interrupts.deferred():
@@ -157,6 +169,7 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
     if problem:  # before the Blender scene is built
         raise UserError(f"{out_path}: {problem}")
     render_s = 0.0
+    truth_s = 0.0  # boxes, visibility, truncation and every object's rows, after the render
     first_s = 0.0  # the first render also builds Cycles' BVH and shaders (kept after it: persistent data)
     # Cycles swallows a KeyboardInterrupt raised inside its callbacks (and renders on), so SIGINT/SIGTERM
     # are only recorded while Blender runs and raised between frames; the outputs are then never renamed.
@@ -168,14 +181,17 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
             keep = run.stage_dir(keep_frames)  # replaces the directory whole at the commit: runs never mix
         with BlenderScene(cfg) as scene:
             interrupts.check()
-            amodal, visible, visibility = [], [], []
+            amodal, visible, visibility, truncation = [], [], [], []
+            table = scene_object_table(cfg)
+            ids = np.array([row["id"] for row in table])
+            rows: list[dict] = []  # every object's ground truth per sample (with labels)
 
             def renders():
                 """Luma of each sample in turn; its boxes are kept for the file."""
-                nonlocal render_s, first_s
+                nonlocal render_s, first_s, truth_s
                 for i, t in enumerate(times):
                     r0 = time.perf_counter()
-                    luma, full, seen, objects = scene.render_with_objects(float(t))
+                    luma, full, seen, objects, coverage = scene.render_truth(float(t))
                     render_s += time.perf_counter() - r0
                     interrupts.check()  # a signal during the render: stop here
                     if i == 0:
@@ -184,15 +200,29 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
                         with writing(keep_frames):  # a full disk: one line naming --keep-frames
                             np.save(keep / f"{i:06d}.npy", luma)
                         kept.update(luma)
+                    g0 = time.perf_counter()
                     amodal.append(box_from_mask(full))
                     visible.append(box_from_mask(seen))
                     visibility.append(mask_visibility(full, seen))
+                    _, on, whole = coverage[TARGET_ID]
+                    truncation.append(truncation_share(on, whole))
+                    if labels:
+                        coverage[TARGET_ID] = (full, on, whole)  # the target's amodal mask as /boxes/xywh has it
+                        rows.append(object_rows(objects, ids, coverage))
+                    truth_s += time.perf_counter() - g0
                     yield LabelledFrame(luma, objects) if labels else luma
 
+            def boxes() -> dict:
+                out = {"t_us": t_us, "xywh": amodal, "xywh_visible": visible, "visibility": visibility,
+                       "truncation": truncation}
+                if rows:
+                    out["objects"] = {name: np.stack([r[name] for r in rows]) for name in rows[0]}
+                return out
+
             _, counts = write_sequence(out_path, renders(), t_us, sim, attrs, int(round(cfg.segment_ms * 1000)),
-                                       source=cfg.name, boxes=lambda: (t_us, amodal, visible, visibility), progress=progress,
+                                       source=cfg.name, boxes=boxes, progress=progress,
                                        bar_after_error=False,  # the error line alone, no bar redrawn under it
-                                       objects=scene_object_table(cfg) if labels else None,
+                                       objects=table if labels else None, masks=masks,
                                        final_attrs=lambda: {KEPT_DIGEST_ATTR: kept.hexdigest()} if keep else {})
             n_events, n_pos = counts.events, counts.positive
     wall = time.perf_counter() - start
@@ -203,5 +233,6 @@ def _generate(cfg: SceneConfig, out_path: str | Path, scene_text: str, progress:
             "events": n_events, "positive_fraction": round(n_pos / n_events, 4) if n_events else None,
             "s_per_frame": round(render_s / len(times), 4),
             "s_per_frame_after_first": round((render_s - first_s) / (len(times) - 1), 4) if len(times) > 1 else None,
-            "first_frame_s": round(first_s, 3), "frames_per_simulated_s": round(len(times) / cfg.duration_s, 1),
+            "first_frame_s": round(first_s, 3), "truth_s_per_frame": round(truth_s / len(times), 4),
+            "masks": masks, "frames_per_simulated_s": round(len(times) / cfg.duration_s, 1),
             "wall_s": round(wall, 2)}

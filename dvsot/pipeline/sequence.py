@@ -31,10 +31,11 @@ class SimulationCounts:
 
 def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator, writer: DatasetWriter,
                     source: str = "frames", progress: Callable[[int, int], None] | None = None,
-                    is_log: bool = False) -> SimulationCounts:
+                    is_log: bool = False, masks: bool = False) -> SimulationCounts:
     """Step sim through frames at t_us (microseconds) and append every event to writer; progress(frame, events).
 
-    Frames given as LabelledFrame (all of them or none) label each event with its object (dvsot.events.labels).
+    Frames given as LabelledFrame (all of them or none) label each event with its object (dvsot.events.labels);
+    masks: each LabelledFrame's object index image is also kept, as the file's /masks/objects row of its sample.
     """
     from dvsot.runtime import interrupts
 
@@ -49,6 +50,8 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
             labeller = EventLabeller(sim.width, sim.height)
         elif labelled != (labeller is not None):
             raise UserError(f"{source}: frame {i}: either every frame comes with object labels or none does")
+        if masks and not labelled:
+            raise UserError(f"{source}: frame {i}: masks are the frames' object labels, and it has none")
         try:
             if labelled:
                 batch = labeller.label(sim.step(frame.frame, int(t_us[i]), is_log=is_log, copy=False),
@@ -58,6 +61,8 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
         except UserError as exc:
             raise UserError(f"{source}: frame {i}: {exc}") from None
         writer.append_events(batch)
+        if masks:
+            writer.append_mask(frame.objects)
         n_pos += int(np.count_nonzero(batch.p))
         n = i + 1
         if progress is not None:
@@ -65,14 +70,16 @@ def simulate_frames(frames: Iterable[np.ndarray], t_us: Sequence[int], sim: Even
     return SimulationCounts(n, writer.num_events, n_pos)
 
 
-BoxRows = tuple  # (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)[, visibility (N,)]]): DatasetWriter.append_boxes
+# (t_us (N,), xywh (N, 4)[, xywh_visible (N, 4)[, visibility (N,)]]) or a dict of DatasetWriter.append_boxes' keyword
+# arguments, which may add "objects": every object's rows stacked (DatasetWriter.append_object_rows)
+BoxRows = tuple | dict
 
 
 def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequence[int], sim: EventSimulator,
                    attrs: dict, segment_us: int = SEGMENT_US, *, source: str = "frames", is_log: bool = False,
                    boxes: Callable[[], BoxRows | None] | None = None, progress: bool = False,
                    desc: str | None = None, bar_after_error: bool = True,
-                   objects: list[dict] | None = None,
+                   objects: list[dict] | None = None, masks: bool = False,
                    final_attrs: Callable[[], dict] | None = None) -> tuple[Path, SimulationCounts]:
     """Frames at t_us (microseconds) -> events -> a new dataset file at path (with boxes); its path and counts.
 
@@ -80,7 +87,8 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
     every frame is consumed, so a renderer may collect its boxes while it yields frames. The file is
     renamed into place only when complete (DatasetWriter); on any error nothing is left behind, and the
     progress bar stays on screen unless bar_after_error is False (then the error line stands alone).
-    objects: the object table (dvsot.events.labels.object_table) when the frames are LabelledFrames.
+    objects: the object table (dvsot.events.labels.object_table) when the frames are LabelledFrames; masks: keep
+    their object index images too (/masks/objects).
     final_attrs(): root attributes known once every frame is consumed (the kept frames' digest).
     """
     with DatasetWriter(path, sim.width, sim.height, segment_us, attrs, objects=objects) as writer:
@@ -95,7 +103,7 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
                 bar.set_postfix_str(f"t={t_us[done - 1] / 1e6:.3f}s events={events:,}", refresh=False)
 
         try:
-            counts = simulate_frames(frames, t_us, sim, writer, source, shown, is_log=is_log)
+            counts = simulate_frames(frames, t_us, sim, writer, source, shown, is_log=is_log, masks=masks)
         except BaseException:
             if bar is not None:
                 bar.leave = bar_after_error
@@ -106,7 +114,13 @@ def write_sequence(path: str | Path, frames: Iterable[np.ndarray], t_us: Sequenc
         if counts.frames != len(t_us):
             raise UserError(f"{source}: expected {len(t_us)} frames, read {counts.frames}")
         rows = boxes() if boxes is not None else None
-        if rows is not None:
+        if isinstance(rows, dict):
+            rows = dict(rows)
+            object_rows = rows.pop("objects", None)
+            writer.append_boxes(**rows)
+            if object_rows is not None:
+                writer.append_object_rows(object_rows)
+        elif rows is not None:
             writer.append_boxes(*rows)
         if final_attrs is not None:
             writer.set_attrs(**final_attrs())

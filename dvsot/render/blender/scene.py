@@ -11,7 +11,11 @@ Blender could not write there (a full or read-only file system) is one RunError 
   triangles projected with the same camera and rasterised at pixel centres (dvsot.render.raster), which
   gives the pixels an object-index pass of the target alone gives, at a fraction of the cost; with
   render.amodal_mask = "render", a second view layer "mask" holding the target alone (every other
-  collection excluded) whose Object Index is the mask.
+  collection excluded) whose Object Index is the mask;
+* every object's amodal silhouette (the target's and the scene file's objects'), rasterised the same way over
+  its whole projected extent, on the sensor and past its edges (object_coverage): its amodal mask, and its
+  area on the sensor and in all, from which truncation (the share off the sensor) follows; render_truth gives
+  it with the render.
 
 Cycles runs on the CPU with a fixed seed (no animated seed) and no denoising, so a static pixel gets
 exactly the same value in every frame and produces no false events.
@@ -39,7 +43,7 @@ from dvsot.scene import Background, SceneConfig, SceneObject, Texture
 from dvsot.core.errors import RunError, exception_line
 from dvsot.events.labels import TARGET_ID
 from dvsot.render.plane_view import seen_part
-from dvsot.render.raster import silhouette_mask, triangulate
+from dvsot.render.raster import silhouette_coverage, silhouette_mask, triangulate
 from dvsot.scene.shapes import mesh_for
 from dvsot.scene.trajectory import pose_and_scale
 
@@ -67,7 +71,8 @@ def _mesh_object(name: str, obj: SceneObject, collection, surface: str = "princi
 
 
 class BlenderScene:
-    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask)."""
+    """A built scene: set_time(t) poses it, render() returns (luma, amodal mask, visible mask); render_truth() adds
+    the object index pass and every object's amodal coverage."""
 
     def __init__(self, cfg: SceneConfig) -> None:
         self.cfg = cfg
@@ -155,6 +160,12 @@ class BlenderScene:
                        for i, o in enumerate(cfg.objects)]
         for i, (ob, _) in enumerate(self.others):  # the background plane keeps 0, the world's value
             ob.pass_index = TARGET_INDEX + 1 + i
+        # every object's mesh (vertices in metres, scaled by size_m; triangles) by its id, for the amodal rasters
+        self._meshes = {TARGET_INDEX: (self._target_verts, self._target_tris)}
+        for i, (_, o) in enumerate(self.others):
+            v, fcs = mesh_for(o.shape, o.mesh)
+            self._meshes[TARGET_INDEX + 1 + i] = (np.asarray(v, np.float64) * o.size_m, triangulate(fcs))
+        self._matrices: dict[int, np.ndarray] = {}
         self._background(cfg.background)
         if cfg.background.kind == "plane" and should_bake(cfg.background.material.texture, cfg.render.bake_background):
             self.bake_sizes = bake_background(self.background_plane, sc, cfg.render, cfg.background.size_m,
@@ -285,6 +296,7 @@ class BlenderScene:
             m, s = pose_and_scale(spec.trajectory, t, cfg.derived_seed("shake:" + ob.name))
             m[:3, :3] = m[:3, :3] * s
             ob.matrix_world = m.T.tolist()
+            self._matrices[ob.pass_index] = m
             if ob is self.target:
                 self._target_matrix = m
 
@@ -316,12 +328,36 @@ class BlenderScene:
         verts = self._target_verts @ m[:3, :3].T + m[:3, 3]
         return silhouette_mask(verts, self._target_tris, self._camera_matrix, self._intrinsics)
 
+    def object_coverage(self) -> dict[int, tuple[np.ndarray, float, float]]:
+        """Per object id (the target and the scene file's objects) at the current pose: (its amodal mask on the
+        sensor, bool HxW; its silhouette's area on the sensor and in all, pixels), from its projected triangles
+        (dvsot.render.raster.silhouette_coverage: the sensor's pixel grid extended past its edges)."""
+        out = {}
+        for i, (verts, tris) in self._meshes.items():
+            m = self._matrices[i]
+            out[i] = silhouette_coverage(verts @ m[:3, :3].T + m[:3, 3], tris, self._camera_matrix, self._intrinsics)
+        return out
+
+    def render_truth(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """render_with_objects(t) and object_coverage() at t seconds, the target's amodal mask taken from the latter
+        (raster mode: one rasterisation of the target per sample)."""
+        luma, objects, rendered = self._render_passes(t)
+        coverage = self.object_coverage()
+        amodal = rendered if rendered is not None else coverage[TARGET_INDEX][0]
+        return luma, amodal, objects == TARGET_INDEX, objects, coverage
+
     def render(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(linear luma float32 HxW, amodal target mask bool HxW, visible target mask bool HxW) at t seconds."""
         return self.render_with_objects(t)[:3]
 
     def render_with_objects(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """render(t) and the object id of each pixel (u1 HxW, dvsot.events.labels' ids) from the same pass."""
+        luma, objects, rendered = self._render_passes(t)
+        amodal = rendered if rendered is not None else self.raster_amodal_mask()
+        return luma, amodal, objects == TARGET_INDEX, objects
+
+    def _render_passes(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(luma float32 HxW, object ids u1 HxW, the rendered amodal target mask or None in raster mode) at t (s)."""
         import OpenEXR
 
         self.set_time(t)
@@ -351,9 +387,7 @@ class BlenderScene:
         rgba = channels["main.Combined"].pixels
         luma = rgba[..., :3] @ _LUMA
         objects = np.rint(channels["main.Object Index.X"].pixels).astype(np.uint8)
-        visible = objects == TARGET_INDEX
+        rendered = None
         if self.cfg.render.amodal_mask == "render":
-            amodal = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
-        else:
-            amodal = self.raster_amodal_mask()
-        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), amodal, visible, objects
+            rendered = np.rint(channels["mask.Object Index.X"].pixels) == TARGET_INDEX
+        return np.ascontiguousarray(np.maximum(luma, 0.0), np.float32), objects, rendered

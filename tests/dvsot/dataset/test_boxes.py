@@ -72,3 +72,38 @@ def test_iou_by_hand():
     assert iou_xywh(a, [10, 0, 10, 10]) == 0.0  # touching edges of half-open boxes do not overlap
     assert iou_xywh(a, [np.nan] * 4) == 0.0
     np.testing.assert_allclose(iou_xywh(a[None], np.array([[0, 0, 10, 10], [0, 0, 20, 10]])), [1.0, 0.5])
+
+
+def test_label_boxes_match_box_from_mask_for_every_id():
+    from dvsot.dataset.boxes import label_boxes
+
+    rng = np.random.default_rng(3)
+    img = np.zeros((30, 40), np.uint8)
+    img[5:9, 10:20] = 1
+    img[20:29, 0:3] = 2
+    img[rng.integers(0, 30, 5), rng.integers(0, 40, 5)] = 7
+    ids = np.array([0, 1, 2, 7, 9])
+    boxes, counts = label_boxes(img, ids)
+    for j, i in enumerate(ids):
+        np.testing.assert_array_equal(boxes[j], box_from_mask(img == i))
+        assert counts[j] == np.count_nonzero(img == i)
+    assert np.isnan(boxes[4]).all() and counts[4] == 0
+
+
+def test_object_rows_give_visibility_and_truncation_per_object():
+    from dvsot.dataset.boxes import object_rows, truncation_share
+
+    img = np.zeros((10, 10), np.uint8)
+    img[2:6, 2:6] = 2  # the occluder, in front of half the target
+    img[2:6, 6:8] = 1
+    target = np.zeros((10, 10), bool)
+    target[2:6, 4:8] = True  # 16 px amodal, 8 visible
+    occluder = img == 2
+    rows = object_rows(img, np.array([0, 1, 2, 255]), {1: (target, 16.0, 64.0), 2: (occluder, 16.0, 16.0)})
+    np.testing.assert_array_equal(rows["boxes_amodal"][1], [4, 2, 4, 4])
+    np.testing.assert_array_equal(rows["boxes_visible"][1], [6, 2, 2, 4])
+    assert rows["px_visible"].tolist() == [100 - 24, 8, 16, 0] and rows["px_amodal"].tolist() == [0, 16, 16, 0]
+    assert rows["visibility"][1] == 0.5 and rows["visibility"][2] == 1.0
+    assert rows["truncation"][1] == 0.75 and rows["truncation"][2] == 0.0
+    assert np.isnan(rows["visibility"][[0, 3]]).all() and np.isnan(rows["boxes_amodal"][0]).all()
+    assert truncation_share(0.0, 0.0) == 1.0 and truncation_share(5.0, 4.0) == 0.0

@@ -62,7 +62,8 @@ def test_torch_dataset_gives_labels_and_target_mask(tmp_path):
 
     src = _labelled(tmp_path / "l.h5")
     data = SegmentDataset(src, labels=True, with_box=False)
-    events, box, objects, mask = data[1]
+    events, box, objects, mask, truth = data[1]
+    assert truth["silhouette"] is None and np.isnan(truth["visibility"])  # a file without masks or visibility
     with Dataset(src) as ds:
         seg = ds.segment(1)
     assert np.array_equal(objects, seg.events.object) and len(objects) == len(events)
@@ -74,7 +75,7 @@ def test_torch_dataset_gives_labels_and_target_mask(tmp_path):
     # then 10..13) to 7-8 ms (those before 8 ms: 16..19, then 18..21), so its edges swept columns 8..21
     assert np.array_equal(np.flatnonzero(mask.any(axis=0)), np.arange(8, 22))
     pytest.importorskip("torch")
-    ev_b, box_b, obj_b, mask_b = collate_segments([data[0], data[1]])
+    ev_b, box_b, obj_b, mask_b, truth_b = collate_segments([data[0], data[1]])
     assert tuple(mask_b.shape) == (2, H, W) and len(obj_b) == 2
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dvsot.render.raster import silhouette_mask, triangulate
+from dvsot.render.raster import silhouette_coverage, silhouette_mask, triangulate
 from dvsot.scene.trajectory import Intrinsics
 
 K = Intrinsics(fx=20.0, cx=8.0, cy=6.0, width=16, height=12)
@@ -51,6 +51,40 @@ def test_near_plane_clipping_keeps_the_part_in_front():
 def test_huge_triangle_covering_the_image():
     verts, tris = square(-1e6, 1e6, -1e6, 1e6)
     assert silhouette_mask(verts, tris, CAM, K).all()
+
+
+def test_coverage_of_a_square_wholly_on_the_sensor_is_its_mask():
+    verts, tris = square(2.3, 5.3, 3.2, 7.9)
+    mask, on, whole = silhouette_coverage(verts, tris, CAM, K)
+    assert (mask == silhouette_mask(verts, tris, CAM, K)).all()
+    assert on == whole == mask.sum() == 15
+
+
+@pytest.mark.parametrize("x0,x1,off", [(-4.0, 4.0, 0.5), (12.0, 20.0, 0.5), (-6.0, 2.0, 0.75), (10.0, 30.0, 0.7)])
+def test_coverage_counts_the_part_past_the_edge_exactly(x0, x1, off):
+    # pixel centres at integer + 0.5: a square spanning whole pixels is counted exactly on and off the sensor
+    verts, tris = square(x0, x1, 2.0, 6.0)
+    mask, on, whole = silhouette_coverage(verts, tris, CAM, K)
+    assert whole == (x1 - x0) * 4 and on == mask.sum()
+    assert 1 - on / whole == pytest.approx(off)
+
+
+def test_coverage_of_a_huge_extent_uses_coarse_cells_within_one_cell_of_the_outline():
+    verts, tris = square(-2000.0, 8.0, 0.0, 12.0)  # 2008 x 12 px, 500 of them over max_cells below
+    _, on, whole = silhouette_coverage(verts, tris, CAM, K, max_cells=500)
+    true_off = 1 - (8 * 12) / (2008 * 12)
+    s = int(np.ceil(np.sqrt((2008 + 8) * 12 / 500)))
+    assert abs((1 - on / whole) - true_off) <= 2 * s * (2008 + 12) / (2008 * 12)
+    assert 0 < on <= whole
+
+
+def test_coverage_of_nothing_in_front_is_zero():
+    verts, tris = square(2.3, 5.3, 3.2, 7.9)
+    mask, on, whole = silhouette_coverage(verts * np.array([1, 1, -1]), tris, CAM, K)
+    assert not mask.any() and on == whole == 0
+    far, _ = square(100, 120, 3, 8)
+    mask, on, whole = silhouette_coverage(far, tris, CAM, K)
+    assert not mask.any() and on == 0 and whole == 20 * 5
 
 
 @pytest.mark.blender
