@@ -11,6 +11,7 @@ comment names must be one of that command's flags. The Python block runs in test
 from __future__ import annotations
 
 import argparse
+import functools
 import glob
 import re
 import shlex
@@ -23,7 +24,8 @@ README = ROOT / "README.md"
 # first path components that are the repository's own folders; any other path (out/, data/, runs/) is the user's
 REPO_FOLDERS = ("blender_scenes", "benchmarks", "docs", "dvsot", "sctn", "tests")
 CHEAP_COMMANDS = ("info", "export", "simulate")
-_PATH = re.compile(r"(?<![\w./-])((?:%s)/(?:[\w.*{},-]+/)*[\w.*{},-]*[\w*}/])" % "|".join(REPO_FOLDERS))
+_FOLDERS = "|".join(REPO_FOLDERS)
+_PATH = re.compile(rf"(?<![\w./-])((?:{_FOLDERS})/(?:[\w.*-]+/)*[\w.*-]*[\w*/])")
 
 
 def fenced_blocks() -> list[tuple[str, str]]:
@@ -64,20 +66,24 @@ def repo_path_problems(text: str) -> list[str]:
     return problems
 
 
-def _subparser(name: str) -> argparse.ArgumentParser:
+@functools.cache
+def _parser() -> argparse.ArgumentParser:
     from dvsot.cli import build_parser
 
-    parser = build_parser()
+    return build_parser()
+
+
+def _subparser(name: str) -> argparse.ArgumentParser:
+    """The parser of `dvsot NAME`, or of `dvsot` itself where NAME is no command."""
+    parser = _parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return sub.choices[name] if name in sub.choices else parser
 
 
 def _parse(argv: list[str], capsys) -> argparse.Namespace:
     """`dvsot`'s parser on argv; a refusal fails the test with the parser's own line."""
-    from dvsot.cli import build_parser
-
     try:
-        return build_parser().parse_args(argv)
+        return _parser().parse_args(argv)
     except SystemExit as exc:
         pytest.fail(f"README: dvsot {shlex.join(argv)}: refused by its parser (status {exc.code}): "
                     f"{capsys.readouterr().err.strip()}")
@@ -95,17 +101,23 @@ def _check_registries(args: argparse.Namespace, line: str) -> None:
         assert tracker in (args.tracker or []), f"README: {line}: --option {spec} names a tracker not in the run"
         if tracker != "sctn":
             pytest.fail(f"README: {line}: this test checks only sctn's --option keys; extend it for {tracker!r}")
+        from pydantic import ValidationError
+
         from benchmarks.trackers.sctn import SCTNOptions
         from dvsot.scene import yaml_value
 
-        SCTNOptions(**{key: yaml_value(value)})  # pydantic: an unknown key or a bad value raises
+        try:
+            SCTNOptions(**{key: yaml_value(value)})
+        except ValidationError as exc:
+            pytest.fail(f"README: {line}: --option {spec}: {' '.join(str(exc).split())}")
 
 
-def _flags_in_comment(argv: list[str], comment: str) -> list[str]:
-    """The --flags a line's comment names that its command does not have."""
+def _unknown_flags(argv: list[str], text: str) -> list[str]:
+    """The --flags in `text` (a line's argv or comment) that its command does not have by that exact name (argparse
+    would take a prefix of one)."""
     parser = _subparser(argv[0]) if argv and not argv[0].startswith("-") else _subparser("")
     known = set(parser._option_string_actions)
-    return [f for f in re.findall(r"(?<![\w-])(--[a-z][\w-]*)", comment) if f not in known]
+    return [f for f in re.findall(r"(?<![\w-])(--[a-z][\w-]*)", text) if f not in known]
 
 
 @pytest.fixture
@@ -137,7 +149,8 @@ def test_the_page_has_only_blocks_this_test_or_test_public_api_runs():
 
 
 def test_every_repository_path_the_page_names_exists():
-    assert not repo_path_problems(README.read_text(encoding="utf-8"))
+    problems = repo_path_problems(README.read_text(encoding="utf-8"))
+    assert not problems, f"README names repository paths that do not exist: {problems}"
 
 
 def test_every_bash_line_runs_or_passes_its_parser(demo_dir, monkeypatch, capsys):
@@ -155,7 +168,9 @@ def test_every_bash_line_runs_or_passes_its_parser(demo_dir, monkeypatch, capsys
         argv = expand(words[1:], demo_dir)
         missing = [a for a in argv if repo_path_problems(a)]
         assert not missing, f"README: {code}: no such repository path {missing}"
-        unknown = _flags_in_comment(argv, comment)
+        unknown = _unknown_flags(argv, shlex.join(argv))
+        assert not unknown, f"README: {code}: flags the command lacks by these names: {unknown}"
+        unknown = _unknown_flags(argv, comment)
         assert not unknown, f"README: {code}: its comment names flags the command lacks: {unknown}"
         if "--help" in argv or "--dry-run" in argv or argv[0] in CHEAP_COMMANDS:
             try:
@@ -174,16 +189,16 @@ def test_every_bash_line_runs_or_passes_its_parser(demo_dir, monkeypatch, capsys
     ("dvsot bench --tracker rct --no-such-flag", "refused by its parser"),
     ("dvsot bench --tracker no_such_tracker", "unknown tracker"),
     ("dvsot bench --tracker sctn --option sctn.no_such_key=1", "no_such_key"),
+    ("dvsot bench --tracker sctn --option sctn.reinit=onlin", "reinit"),
     ("dvsot train --model no_such_model -o runs/x.pt", "refused by its parser"),
 ])
 def test_a_bad_line_fails_the_check(line, problem, capsys):
-    from pydantic import ValidationError
-
-    with pytest.raises((pytest.fail.Exception, AssertionError, ValidationError), match=problem):
+    with pytest.raises((pytest.fail.Exception, AssertionError), match=problem):
         _check_registries(_parse(shlex.split(line)[1:], capsys), line)
 
 
 def test_a_missing_repository_path_or_flag_is_found():
     assert repo_path_problems("`blender_scenes/no_such.yaml`, docs/results.md") == ["blender_scenes/no_such.yaml"]
     assert repo_path_problems("blender_scenes/*.yaml sctn/checkpoints/") == []
-    assert _flags_in_comment(["info", "out/x.h5"], "--json for scripts, --jsn") == ["--jsn"]
+    assert _unknown_flags(["info", "out/x.h5"], "--json for scripts, --jsn") == ["--jsn"]
+    assert _unknown_flags(["train"], "train --max-minute 15") == ["--max-minute"]  # argparse takes the prefix
