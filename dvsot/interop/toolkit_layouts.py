@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Mapping
-
-import numpy as np
+from typing import TYPE_CHECKING, Mapping
 
 from dvsot.core.errors import UserError, label
 from dvsot.core.file_names import file_stem
+
+if TYPE_CHECKING:  # numpy is imported where it is used: the command's flags name LAYOUTS without it
+    import numpy as np
 
 LAYOUTS = ("got10k", "lasot", "vot")
 MANIFEST = ".dvsot_export.json"
@@ -41,11 +42,15 @@ class TagsLeftOut(UserWarning):
 
 def _box_lines(xywh: np.ndarray) -> str:
     """One x,y,w,h line per row (float32 values that read back exactly; nan where there is no box)."""
+    import numpy as np
+
     return "".join(",".join(f"{v:.9g}" for v in row) + "\n" for row in np.asarray(xywh, np.float32).tolist())
 
 
 def _lines(values: np.ndarray) -> str:
     """One value per line: flags and labels as integers, shares as float32 values that read back exactly."""
+    import numpy as np
+
     a = np.asarray(values)
     if a.dtype == bool or a.dtype.kind in "iu":
         return "".join(f"{int(v)}\n" for v in a.tolist())
@@ -59,6 +64,8 @@ def _one_line(text: str) -> str:
 
 def sequence_texts(ds, layout: str) -> tuple[dict[str, str], list[str]]:
     """({path relative to the sequence's directory: text}, [the tag files left out]) of one opened dataset file."""
+    import numpy as np
+
     from dvsot.dataset.tags import cover_label, segment_tags
 
     box, vis, trunc, absent = (ds.segment_boxes(), ds.segment_visibility(), ds.segment_truncation(),
