@@ -161,7 +161,8 @@ def lasot_sequence(seq: Path) -> tuple[np.ndarray, dict]:
 
 def vot_sequence(seq: Path, length: int) -> tuple[list, dict, dict, dict]:
     """The VOT toolkit's VOTSequence: groundtruth regions, *.tag / *.label (line == "1"), *.value, `sequence`."""
-    regions = [[float(t) for t in line.strip().split(",")] for line in (seq / "groundtruth.txt").read_text().splitlines()]
+    lines = (seq / "groundtruth.txt").read_text().splitlines()
+    regions = [[float(t) for t in line.strip().split(",")] for line in lines]
     tags = {p.stem: [line.strip() == "1" for line in p.read_text().splitlines(keepends=True)]
             for p in sorted(seq.glob("*.tag")) + sorted(seq.glob("*.label"))}
     values = {p.stem: [float(line.strip()) for line in p.read_text().splitlines(keepends=True)]
