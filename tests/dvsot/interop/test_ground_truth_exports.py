@@ -242,3 +242,31 @@ def test_layout_exports_refuse_clashes_and_strangers_before_writing(tmp_path, ca
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert main(["export", str(a), "--layout", "lasot", "-o", str(tmp_path / "l")]) == 0
+
+
+@pytest.mark.blender
+def test_the_hide_and_leave_example_is_tagged_as_it_plays(tmp_path):
+    from dvsot.dataset.tags import segment_tags
+    from dvsot.pipeline.generate import generate
+    from dvsot.scene import load_scene
+
+    scene = Path(__file__).resolve().parents[3] / "blender_scenes" / "examples" / "hide_and_leave.yaml"
+    tiny = {"sensor.width": 64, "sensor.height": 48, "sampling.max_displacement_px": 3.0,
+            "sampling.min_rate_hz": 10.0, "render.samples": 1}
+    out = tmp_path / "hide.h5"
+    generate(load_scene(scene, tiny), out, scene.read_text(), progress=False, masks=False)
+    with Dataset(out) as ds:
+        tags = segment_tags(ds)
+        t = (np.arange(ds.num_segments) + 1) * ds.segment_us / 1e6
+    early, hidden, gone = t < 0.4, (t > 0.8) & (t < 1.1), t > 2.4
+    assert not any(tags[k][early].any() for k in tags)  # seen whole, on the sensor: no tag
+    assert tags["full_occlusion"][hidden].all() and tags["occlusion"][hidden].all()
+    assert not tags["out_of_view"][hidden].any() and not tags["cut_by_image"][hidden].any()
+    assert tags["out_of_view"][gone].all() and not tags["full_occlusion"][gone].any()
+    assert not tags["occlusion"][gone].any()  # off the sensor is out of view, not occluded
+    leaving = (t > 1.85) & (t < 2.25)
+    assert tags["cut_by_image"][leaving].any() and not tags["cut_by_image"][hidden | gone].any()
+    export_layout(out, tmp_path / "g", "got10k")
+    _, meta = got10k_sequences(tmp_path / "g")["hide_and_leave"]
+    assert (meta["cover"][hidden] == 0).all() and (meta["cover"][t < 0.3] == 8).all()  # the wall nears by 0.4 s
+    assert (meta["cover"][leaving] < 8).any()
