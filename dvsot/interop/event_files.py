@@ -11,13 +11,16 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from dvsot.core.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.core.errors import UserError, exception_line, label
 from dvsot.core.bounds import sensor_size_problem
+
+if TYPE_CHECKING:
+    from dvsot.dataset import Dataset
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
@@ -497,7 +500,7 @@ def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -
             fh.write(ts + "," + ",".join(f"{v:.9g}" for v in row) + "\n")
 
 
-def ground_truth_columns(ds, t_offset_us: int = 0) -> dict[str, np.ndarray]:
+def ground_truth_columns(ds: Dataset, t_offset_us: int = 0) -> dict[str, np.ndarray]:
     """The gt table of a dataset file, {column: per-segment values}: segment, t (its end, us, + t_offset_us), the
     amodal and visible boxes (pixels), then visibility, truncation and absent where the file has them, and the tags
     of dvsot.dataset.tags that it can decide (bool)."""

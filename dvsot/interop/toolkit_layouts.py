@@ -32,6 +32,8 @@ from dvsot.core.file_names import file_stem
 if TYPE_CHECKING:  # numpy is imported where it is used: the command's flags name LAYOUTS without it
     import numpy as np
 
+    from dvsot.dataset import Dataset
+
 LAYOUTS = ("got10k", "lasot", "vot")
 MANIFEST = ".dvsot_export.json"
 
@@ -62,7 +64,7 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split()) or "target"
 
 
-def sequence_texts(ds, layout: str) -> tuple[dict[str, str], list[str]]:
+def sequence_texts(ds: Dataset, layout: str) -> tuple[dict[str, str], list[str]]:
     """({path relative to the sequence's directory: text}, [the tag files left out]) of one opened dataset file."""
     import numpy as np
 
@@ -109,7 +111,7 @@ def sequence_dir(name: str, layout: str) -> Path:
     return Path(stem, f"{stem}-1") if layout == "lasot" else Path(stem)
 
 
-def export_layout(specs, out_dir: str | os.PathLike, layout: str, labels: Mapping[str, str] | None = None,
+def export_layout(specs: str | os.PathLike | list, out_dir: str | os.PathLike, layout: str, labels: Mapping[str, str] | None = None,
                   split: str | None = None) -> list[Path]:
     """Write the ground truth and tags of the dataset files that specs name (a file, directory, glob or a list of
     them; split: only those of one split) into out_dir in a toolkit's layout (LAYOUTS); the files written.
