@@ -24,6 +24,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resolution", help="override the sensor size, WxH (the lens's field of view is kept)")
     p.add_argument("--jobs", type=int, default=1, help="scenes rendered in parallel processes: local:N (default 1)")
     p.add_argument("--keep-frames", help="directory to keep rendered luma frames (.npy) in")
+    p.add_argument("--masks", action=argparse.BooleanOptionalAction, default=None,
+                   help="keep the object index masks per sample (/masks/objects); on by default, --no-masks "
+                        "leaves them out")
     p.add_argument("--quiet", action="store_true", help="no progress bar; JSON summary")
     many = p.add_argument_group("many scenes (several scene files, a template's variants, a cluster; writes "
                                 "<out-dir>/manifest.json)")
@@ -110,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
 
     manifest = generate_scenes(paths, args.output, args.out_dir, _overrides(args), args.preview, scheduler,
                                args.keep_frames, args.variants, args.retries, args.resume, args.quiet,
-                               _warn, report, _LABELS)
+                               _warn, report, _LABELS, args.masks)
     if manifest.path is not None:
         print(summary_line(manifest), file=sys.stderr)
     else:

@@ -454,6 +454,12 @@ class Dataset:
         """Ground truth of every segment, (num_segments, 4) xywh pixels, NaN = absent."""
         return self._seg_box.copy()
 
+    def segment_visible_boxes(self) -> np.ndarray:
+        """The visible part's box of every segment, (num_segments, 4) xywh pixels, NaN = none (or not in the file)."""
+        if self._seg_vis is None:
+            return np.full_like(self._seg_box, np.nan)
+        return self._seg_vis.copy()
+
     @property
     def annotated(self) -> bool:
         """True for a recording whose boxes are annotations at their own times (scored only where matched)."""

@@ -11,13 +11,16 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from dvsot.core.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.core.errors import UserError, exception_line, label
 from dvsot.core.bounds import sensor_size_problem
+
+if TYPE_CHECKING:
+    from dvsot.dataset import Dataset
 
 # suffix -> format; a .raw is EVT 2 or 3 (evt_version)
 SUFFIXES = {".aedat4": "aedat", ".raw": "evt", ".dat": "dat", ".csv": "csv", ".txt": "txt"}
@@ -412,28 +415,50 @@ def write_event_file(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: n
 
 # An export's side files: named from the output's full name (x.csv -> x.csv.boxes.csv), so outputs that share a
 # stem never share a side file; each starts with its own first line, by which a file there is known to be one.
-SIDE_FILES = {"boxes": (".boxes.csv", "# t_s,x,y,w,h"), "objects": (".objects.csv", "id,name,role")}
+SIDE_FILES = {"boxes": (".boxes.csv", "# t_s,x,y,w,h"), "objects": (".objects.csv", "id,name,role"),
+              "gt": (".gt.csv", "segment,t_s,")}
+# the event formats with a field for per-event object labels
+LABELLED_FORMATS = ("csv",)
+
+
+class LabelsLeftOut(UserWarning):
+    """An export's event format has no field for the dataset file's per-event object labels: they are left out."""
+
+
+def side_path(events_out: str | os.PathLike, kind: str) -> Path:
+    """Where an export's side table of `kind` (a SIDE_FILES key) goes: OUT.csv -> OUT.csv.boxes.csv."""
+    p = Path(events_out)
+    return p.with_name(p.name + SIDE_FILES[kind][0])
 
 
 def objects_path(events_out: str | os.PathLike) -> Path:
     """Where the object table goes beside a CSV export with object labels: OUT.csv -> OUT.csv.objects.csv."""
-    p = Path(events_out)
-    return p.with_name(p.name + SIDE_FILES["objects"][0])
+    return side_path(events_out, "objects")
 
 
 def boxes_path(events_out: str | os.PathLike) -> Path:
     """Where the box track goes beside an exported events file: OUT.aedat4 -> OUT.aedat4.boxes.csv."""
-    p = Path(events_out)
-    return p.with_name(p.name + SIDE_FILES["boxes"][0])
+    return side_path(events_out, "boxes")
+
+
+def gt_path(events_out: str | os.PathLike) -> Path:
+    """Where the per-segment ground truth goes beside an exported events file: OUT.aedat4 -> OUT.aedat4.gt.csv."""
+    return side_path(events_out, "gt")
 
 
 def _side_kind(path: Path) -> str | None:
-    """Which side table an existing regular file is, by its first line ("boxes", "objects"), else None."""
+    """Which side table an existing regular file is, by its first line ("boxes", "objects", "gt"), else None."""
     from dvsot.runtime.inputs import open_input
 
     with open_input(path, "rb", "an export's side file") as fh:
         first = fh.readline(256).decode("utf-8", "replace")
     return next((kind for kind, (_, head) in SIDE_FILES.items() if first.startswith(head)), None)
+
+
+def _sides(out: Path, flag: str, boxes: bool) -> dict[str, Path]:
+    """{kind: path} of the side tables an export to `out` may write: the object table (CSV), boxes and gt."""
+    kinds = (["objects"] if event_format(out, flag) in LABELLED_FORMATS else []) + (["boxes", "gt"] if boxes else [])
+    return {kind: side_path(out, kind) for kind in kinds}
 
 
 def check_export_outputs(out_path: str | os.PathLike, flag: str, inputs=(), boxes: bool = True) -> list[Path]:
@@ -449,48 +474,95 @@ def check_export_outputs(out_path: str | os.PathLike, flag: str, inputs=(), boxe
         if owner is not None and owner.name and os.path.lexists(owner):
             raise UserError(f"{out_path}: {flag} names the {kind} table of the export {owner}; name another output")
     output_file(out_path, flag, inputs)
-    sides = ([objects_path(out)] if event_format(out, flag) == "csv" else []) + ([boxes_path(out)] if boxes else [])
-    for side in sides:
-        kind = "objects" if side == objects_path(out) else "boxes"
+    sides = _sides(out, flag, boxes)
+    for kind, side in sides.items():
         output_file(side, f"{flag} (its {kind} table {side.name})", inputs)
         if side.is_file() and _side_kind(side) != kind:
             raise UserError(f"{side}: {flag}: the {kind} table of {out.name} would replace this file, which is not "
                             f"an export's {kind} table (another output's file?); move it or name another output")
-    return sides
+    return list(sides.values())
+
+
+def _seconds(t_us: np.ndarray) -> list[str]:
+    """Microseconds as seconds with 6 decimals, exact (no float rounding), a minus sign before negative times."""
+    out = []
+    for ti in np.asarray(t_us, np.int64).tolist():
+        sign, ti = ("-", -ti) if ti < 0 else ("", ti)
+        out.append(f"{sign}{ti // 1_000_000}.{ti % 1_000_000:06d}")
+    return out
 
 
 def write_box_csv(path: str | os.PathLike, t_us: np.ndarray, xywh: np.ndarray) -> None:
     """Box rows as CSV t_s,x,y,w,h (seconds with 6 decimals, float32 values that read back exactly, nan = absent)."""
-    t = np.asarray(t_us, np.int64)
     with open(path, "w") as fh:
         fh.write(SIDE_FILES["boxes"][1] + " (pixels; nan = no target)\n")
-        for ti, row in zip(t, np.asarray(xywh, np.float32)):
-            sign, ti = ("-", -ti) if ti < 0 else ("", ti)
-            fh.write(f"{sign}{ti // 1_000_000}.{ti % 1_000_000:06d}," + ",".join(f"{v:.9g}" for v in row) + "\n")
+        for ts, row in zip(_seconds(t_us), np.asarray(xywh, np.float32)):
+            fh.write(ts + "," + ",".join(f"{v:.9g}" for v in row) + "\n")
+
+
+def ground_truth_columns(ds: Dataset, t_offset_us: int = 0) -> dict[str, np.ndarray]:
+    """The gt table of a dataset file, {column: per-segment values}: segment, t (its end, us, + t_offset_us), the
+    amodal and visible boxes (pixels), then visibility, truncation and absent where the file has them, and the tags
+    of dvsot.dataset.tags that it can decide (bool)."""
+    from dvsot.dataset.tags import segment_tags
+
+    box, vis = ds.segment_boxes(), ds.segment_visible_boxes()
+    cols: dict[str, np.ndarray] = {"segment": np.arange(ds.num_segments),
+                                   "t": (np.arange(ds.num_segments, dtype=np.int64) + 1) * ds.segment_us + t_offset_us}
+    cols.update({name: box[:, k] for k, name in enumerate("xywh")})
+    cols.update({f"visible_{name}": vis[:, k] for k, name in enumerate("xywh")})
+    for name, values in (("visibility", ds.segment_visibility()), ("truncation", ds.segment_truncation()),
+                         ("absent", ds.segment_absent())):
+        if values is not None:
+            cols[name] = values
+    cols.update({name: flags for name, flags in segment_tags(ds).items() if name not in cols})
+    return cols
+
+
+def write_gt_csv(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> None:
+    """The gt table as CSV with a header line: t as t_s (seconds, 6 decimals), flags as 0/1, float32 values that
+    read back exactly (nan = none)."""
+    text = {}
+    for name, values in columns.items():
+        a = np.asarray(values)
+        if name == "t":
+            name, cells = "t_s", _seconds(a)
+        elif a.dtype == bool or a.dtype.kind in "iu":
+            cells = [str(int(v)) for v in a.tolist()]
+        else:
+            cells = [f"{v:.9g}" for v in a.astype(np.float32).tolist()]
+        text[name] = cells
+    with open(path, "w") as fh:
+        fh.write(",".join(text) + "\n")
+        fh.writelines(",".join(row) + "\n" for row in zip(*text.values()))
 
 
 def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
                    evt_version: str = EXPORT_EVT_VERSION, boxes: bool = True,
                    labels: Mapping[str, str] | None = None) -> list[Path]:
-    """Write a dataset file's events (t + t_offset) to out_path and its box track to OUT.boxes.csv (OUT the output's
-    full name: x.csv -> x.csv.boxes.csv); the paths written.
+    """Write a dataset file's events (t + t_offset) to out_path, its box track to OUT.boxes.csv and its per-segment
+    ground truth with challenge tags to OUT.gt.csv (OUT the output's full name: x.csv -> x.csv.boxes.csv,
+    x.csv.gt.csv); the paths written.
 
     A CSV export of a file with per-event labels gets the object column and the object table in OUT.objects.csv
-    (id,name,role). Every output is checked before anything is read (UserError: an unknown suffix, a directory, a
-    device or FIFO, an output that is the dataset file, a side file that is another output's); the side files are
-    replaced with the events in one commit, and one the new export does not write (no labels, boxes=False) that the
-    previous export of this output left is removed in it. labels: how messages name out_path (a command's flag)."""
+    (id,name,role); any other format has no field for them, and a LabelsLeftOut warning says they are left out.
+    Every output is checked before anything is read (UserError: an unknown suffix, a directory, a device or FIFO,
+    an output that is the dataset file, a side file that is another output's); the side files are replaced with
+    the events in one commit, and one the new export does not write (no labels, boxes=False) that the previous
+    export of this output left is removed in it. boxes: write the box track and the gt table. labels: how
+    messages name out_path (a command's flag)."""
+    import warnings
+
     from dvsot.dataset import Dataset
     from dvsot.runtime.outputs import output_file, replacing, run_outputs
 
     out = Path(out_path)
     flag = label("out_path", labels)
-    event_format(out, flag)  # an unknown suffix fails before anything is read
+    kind = event_format(out, flag)  # an unknown suffix fails before anything is read
     output_file(out_path, flag, [dataset_path])  # as given: a trailing slash names a directory, refused
-    if event_format(out, flag) == "csv":  # written only when the file has labels
-        output_file(objects_path(out), f"{flag} (its .objects.csv)", [dataset_path])
-    if boxes:
-        output_file(boxes_path(out), f"{flag} (its .boxes.csv)", [dataset_path])
+    sides = _sides(out, flag, boxes)
+    for side_kind, side in sides.items():
+        output_file(side, f"{flag} (its {SIDE_FILES[side_kind][0]})", [dataset_path])
     if evt_version not in EVT_VERSIONS:
         raise UserError(f"evt_version {evt_version!r}: expected one of {', '.join(EVT_VERSIONS)}")
     check_export_outputs(out, flag, [dataset_path], boxes)
@@ -498,7 +570,9 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
         parts = list(ds.chunks())
         track = ds.boxes()
         width, height, offset = ds.width, ds.height, ds.t_offset_us
-        table = ds.objects if event_format(out, flag) == "csv" else None
+        table = ds.objects if kind in LABELLED_FORMATS else None
+        dropped = ds.objects is not None and kind not in LABELLED_FORMATS
+        truth = ground_truth_columns(ds, offset) if boxes else None
     t = np.concatenate([b.t for b in parts]) + offset if parts else np.empty(0, np.int64)
     if len(t) and t[0] < 0:
         raise UserError(f"{dataset_path}: /t_offset {offset} makes timestamps negative, which event files cannot hold")
@@ -506,21 +580,29 @@ def export_dataset(dataset_path: str | os.PathLike, out_path: str | os.PathLike,
     objects = None
     if table is not None:
         objects = np.concatenate([b.object for b in parts]) if parts else np.empty(0, np.uint8)
+    if dropped:
+        warnings.warn(f"{out}: a .{out.suffix.lstrip('.').lower()} file has no field for {dataset_path}'s per-event "
+                      "object labels, so they are left out (a .csv export keeps them)", LabelsLeftOut, stacklevel=2)
+    written = {}
     with run_outputs() as run:  # all written to temp names, renamed together when all are complete
         with replacing(out) as tmp_events:
             write_event_file(tmp_events, t, x, y, p, width, height, evt_version, objects)
         if table is not None:
             import csv
 
-            with replacing(objects_path(out)) as tmp_table, open(tmp_table, "w", newline="") as fh:
+            with replacing(sides["objects"]) as tmp_table, open(tmp_table, "w", newline="") as fh:
                 w = csv.writer(fh, lineterminator="\n")
                 w.writerow(["id", "name", "role"])
                 w.writerows([r["id"], r["name"], r["role"]] for r in table)
+            written["objects"] = sides["objects"]
         if boxes:
-            with replacing(boxes_path(out)) as tmp_boxes:
+            with replacing(sides["boxes"]) as tmp_boxes:
                 write_box_csv(tmp_boxes, track.t + offset, track.xywh)
-        for side in (objects_path(out),) * (table is None) + (boxes_path(out),) * (not boxes):
-            kind = "objects" if side == objects_path(out) else "boxes"
-            if side.is_file() and _side_kind(side) == kind:  # the previous export's: it goes in the same commit
-                run.remove(side)
-    return [out] + ([objects_path(out)] if table is not None else []) + ([boxes_path(out)] if boxes else [])
+            with replacing(sides["gt"]) as tmp_gt:
+                write_gt_csv(tmp_gt, truth)
+            written.update(boxes=sides["boxes"], gt=sides["gt"])
+        for side_kind in SIDE_FILES:
+            side = side_path(out, side_kind)
+            if side_kind not in written and side.is_file() and _side_kind(side) == side_kind:
+                run.remove(side)  # the previous export's: it goes in the same commit
+    return [out, *written.values()]

@@ -133,9 +133,10 @@ def generate_scenes(paths: list[str], output: str | None = None, out_dir: str | 
                     keep_frames: str | None = None, variants: int | None = None, retries: int = 1,
                     resume: bool = False, quiet: bool = False, warn: Callable[[str], None] | None = None,
                     report: Callable[[dict], None] | None = None,
-                    labels: Mapping[str, str] | None = None) -> Manifest:
+                    labels: Mapping[str, str] | None = None, masks: bool | None = None) -> Manifest:
     """Render scene files (or `variants` drawn from one template) into dataset files: `output` for one scene, else
     <out_dir>/<name>.h5 and <out_dir>/manifest.json; the run's manifest (each scene's summary in .summaries).
+    masks: keep each file's object index masks (/masks/objects; None: generate's default, on).
 
     Every scene is loaded and every output path checked before anything is rendered; `warn` gets the scenes'
     visibility warnings (for variants, each task records its own). scheduler: None (this process), local:N or
@@ -148,7 +149,7 @@ def generate_scenes(paths: list[str], output: str | None = None, out_dir: str | 
     alone = len(paths) == 1 and variants is None and scheduler is None and not resume
     tasks, inputs = many_tasks(paths, out_dir or "out", variants, overrides, preview,
                                warn if variants is None else None, labels, keep_frames,
-                               progress=not quiet and scheduler is None, output=output)
+                               progress=not quiet and scheduler is None, output=output, masks=masks)
     if output and not alone:
         raise UserError(f"{label('output', labels)} names one output file, with no manifest: give "
                         f"{label('out_dir', labels)} for a run on a scheduler or a resumed run")
@@ -166,9 +167,10 @@ def generate_scenes(paths: list[str], output: str | None = None, out_dir: str | 
 def generate_variants(template: str | Path, n: int, out_dir: str | Path, scheduler: str | None = None,
                       overrides: dict | None = None, preview: bool = False, retries: int = 1, resume: bool = False,
                       report: Callable[[dict], None] | None = None,
-                      labels: Mapping[str, str] | None = None) -> Manifest:
+                      labels: Mapping[str, str] | None = None, masks: bool | None = None) -> Manifest:
     """Draw n variants of a scene template and render them into <out_dir>/<name>.h5 (here, or on `scheduler`:
-    local:N or tcp://HOST:PORT); the run's manifest, also written to <out_dir>/manifest.json."""
+    local:N or tcp://HOST:PORT); the run's manifest, also written to <out_dir>/manifest.json. masks: keep the
+    object index masks (None: generate's default, on)."""
     from dvsot.core.bounds import MAX_VARIANTS, range_problem
 
     if isinstance(n, bool) or not isinstance(n, int):
@@ -177,7 +179,7 @@ def generate_variants(template: str | Path, n: int, out_dir: str | Path, schedul
     if problem:
         raise UserError(problem)
     return generate_scenes([str(template)], None, str(out_dir), overrides, preview, scheduler, None, n, retries,
-                           resume, True, None, report, labels)
+                           resume, True, None, report, labels, masks)
 
 
 __all__ = ["generate_scenes", "generate_variants", "generate_many", "run_scenes", "check_outputs", "MANIFEST"]

@@ -57,8 +57,9 @@ def _keep(keep_frames: str | None, name: str, several: bool) -> str | None:
 def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrides: dict | None = None,
                   preview: bool = False, warn: Callable[[str], None] | None = None,
                   labels: Mapping[str, str] | None = None, keep_frames: str | None = None,
-                  progress: bool = False) -> tuple[list[SceneTask], list[Path]]:
-    """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5."""
+                  progress: bool = False, masks: bool | None = None) -> tuple[list[SceneTask], list[Path]]:
+    """Draw and validate `count` variants of a template; (tasks, input files) with outputs <out_dir>/<name>.h5.
+    masks: keep the object index masks (None: generate's default)."""
     if count < 1:
         raise UserError(f"count (variants to draw) must be >= 1, got {count}")
     tpl = read_template(template)
@@ -74,15 +75,18 @@ def variant_tasks(template: str | Path, count: int, out_dir: str | Path, overrid
         tasks.append(SceneTask(name=v.name, text=v.text(Path(template).name), source=source,
                                base_dir=str(tpl.base_dir), output=str(out / f"{v.name}.h5"), overrides=overrides,
                                preview=preview, record={"variant": v.index, "seed": v.seed, "drawn": v.drawn},
-                               keep_frames=_keep(keep_frames, v.name, count > 1), progress=progress))
+                               keep_frames=_keep(keep_frames, v.name, count > 1), progress=progress,
+                               masks=masks))
     return tasks, inputs
 
 
 def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = None,
                 preview: bool = False, warn: Callable[[str], None] | None = None,
                 labels: Mapping[str, str] | None = None, keep_frames: str | None = None,
-                progress: bool = False, output: str | None = None) -> tuple[list[SceneTask], list[Path]]:
-    """Validate scene files; (tasks, input files) with outputs <out_dir>/<scene name>.h5 (one scene: `output`)."""
+                progress: bool = False, output: str | None = None,
+                masks: bool | None = None) -> tuple[list[SceneTask], list[Path]]:
+    """Validate scene files; (tasks, input files) with outputs <out_dir>/<scene name>.h5 (one scene: `output`);
+    masks: keep the object index masks (None: generate's default)."""
     if output and len(paths) > 1:
         raise UserError(f"{label('output', labels)} names one output file; use {label('out_dir', labels)} "
                         "for several scenes")
@@ -98,14 +102,16 @@ def scene_tasks(paths: list[str], out_dir: str | Path, overrides: dict | None = 
                                base_dir=str(Path(p).parent.resolve()),
                                output=str(output) if output else str(out / f"{cfg.name}.h5"), overrides=overrides,
                                preview=preview, record={"seed": cfg.seed},
-                               keep_frames=_keep(keep_frames, cfg.name, len(paths) > 1), progress=progress))
+                               keep_frames=_keep(keep_frames, cfg.name, len(paths) > 1), progress=progress,
+                               masks=masks))
     return tasks, inputs
 
 
 def many_tasks(paths: list[str], out_dir: str | Path, variants: int | None = None, overrides: dict | None = None,
                preview: bool = False, warn: Callable[[str], None] | None = None,
                labels: Mapping[str, str] | None = None, keep_frames: str | None = None,
-               progress: bool = False, output: str | None = None) -> tuple[list[SceneTask], list[Path]]:
+               progress: bool = False, output: str | None = None,
+               masks: bool | None = None) -> tuple[list[SceneTask], list[Path]]:
     """`variants` drawn from one template (variant_tasks), or else each scene file a task (scene_tasks)."""
     if variants is not None:
         if len(paths) != 1:
@@ -113,5 +119,6 @@ def many_tasks(paths: list[str], out_dir: str | Path, variants: int | None = Non
         if output:
             raise UserError(f"{label('output', labels)} names one output file; use {label('out_dir', labels)} "
                             f"for {label('variants', labels)}")
-        return variant_tasks(paths[0], variants, out_dir, overrides, preview, warn, labels, keep_frames, progress)
-    return scene_tasks(paths, out_dir, overrides, preview, warn, labels, keep_frames, progress, output)
+        return variant_tasks(paths[0], variants, out_dir, overrides, preview, warn, labels, keep_frames, progress,
+                             masks)
+    return scene_tasks(paths, out_dir, overrides, preview, warn, labels, keep_frames, progress, output, masks)

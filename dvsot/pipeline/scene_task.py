@@ -32,6 +32,7 @@ class SceneTask:
     record: dict = field(default_factory=dict)  # manifest fields known up front (variant, seed, drawn)
     keep_frames: str | None = None  # directory for the rendered luma frames (.npy), on the worker's machine
     progress: bool = False         # a progress bar on stderr (a task rendered in this process)
+    masks: bool | None = None      # keep the object index masks (/masks/objects); None: generate's default
 
 
 def render_scene(task: SceneTask, host_workers: dict[str, int] | None = None) -> dict:
@@ -49,7 +50,7 @@ def render_scene(task: SceneTask, host_workers: dict[str, int] | None = None) ->
         warnings = visibility_warnings(cfg)  # here, not at the head: each costs a scene's projections
         # the dataset file and its preview are renamed into place together, or neither (dvsot.pipeline.generate)
         summary = generate(cfg, task.output, task.text, progress=task.progress, keep_frames=task.keep_frames,
-                           preview=task.preview)
+                           preview=task.preview, masks=task.masks)
         summary["task_s"] = round(time.perf_counter() - t_task, 3)  # with imports, scene check, waiting on the lock
         # CPU seconds of the whole process (every render thread) during the task: what the scene cost whatever
         # else ran on the machine
@@ -99,14 +100,17 @@ def warm_up_scene(tmp: Path, threads: int) -> None:
 
 
 def output_is_done(task: SceneTask) -> bool:
-    """Whether the task's output exists, reads back whole and holds this very scene (for resume)."""
+    """Whether the task's output exists, reads back whole and holds this very scene, with masks or without them as the
+    task asks (for resume)."""
     from dvsot.dataset import Dataset
+    from dvsot.pipeline.generate import MASKS_BY_DEFAULT
 
     if not Path(task.output).is_file():
         return False
     try:
         with Dataset(task.output) as ds:
             ds.verify()
-            return ds.attrs.get("scene_yaml") == task.text
+            masks = MASKS_BY_DEFAULT if task.masks is None else task.masks
+            return ds.attrs.get("scene_yaml") == task.text and ds.has_masks == masks
     except Exception:  # any damage means: render it again
         return False

@@ -54,7 +54,7 @@ def test_unlabelled_csv_export_is_unchanged(tmp_path):
     src = _labelled(tmp_path / "u.h5", labels=False)
     paths = export_dataset(src, tmp_path / "u.csv")
     assert (tmp_path / "u.csv").read_text().splitlines()[0] == "t,x,y,p"
-    assert not (tmp_path / "u.csv.objects.csv").exists() and len(paths) == 2
+    assert not (tmp_path / "u.csv.objects.csv").exists() and len(paths) == 3
 
 
 def test_torch_dataset_gives_labels_and_target_mask(tmp_path):

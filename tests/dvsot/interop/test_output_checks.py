@@ -101,6 +101,7 @@ def test_import_refuses_a_segment_length_out_of_range(events, tmp_path, capsys):
 
 def test_both_write_when_the_outputs_are_fine(dataset, events, tmp_path):
     written = export_dataset(dataset, tmp_path / "e.csv")
-    assert [p.name for p in written] == ["e.csv", "e.csv.boxes.csv"] and all(p.is_file() for p in written)
+    assert [p.name for p in written] == ["e.csv", "e.csv.boxes.csv", "e.csv.gt.csv"]
+    assert all(p.is_file() for p in written)
     ev, boxes = events
     assert import_recording(ev, tmp_path / "r.h5", boxes=boxes, size=(32, 24)).is_file()
