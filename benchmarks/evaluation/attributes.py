@@ -234,38 +234,50 @@ def add_attributes(result: SequenceResult, ds: Dataset) -> SequenceResult:
     return result
 
 
-def _masks(results: list[SequenceResult]) -> dict[str, list[tuple[SequenceResult, np.ndarray]]]:
-    """{'all' or attribute: [(result, mask of its segments)]} over the results that measured it."""
-    out: dict[str, list] = {ALL: [(r, np.ones(len(r.iou), bool)) for r in results]}
+def _scored(results: list[SequenceResult], error: str | None = None) -> dict[str, list[np.ndarray]]:
+    """{'all' or attribute: per result that measured it, its IoUs (or the extra[error] values) on the segments with
+    it, NaN elsewhere}. The `absent` column holds the hidden segments scored apart (protocol rule 6); it is left
+    out when every result skipped them (skip_absent)."""
+    def values(r: SequenceResult, hidden: bool = False) -> np.ndarray:
+        if error is None:
+            return r.hidden_iou if hidden else r.iou
+        return r.extra.get(f"hidden_{error}", np.full(len(r.iou), np.nan)) if hidden else r.extra[error]
+
+    out: dict[str, list[np.ndarray]] = {ALL: [values(r) for r in results]}
     for name in ATTRIBUTES:
-        rows = [(r, r.extra.get("attributes", {})[name]) for r in results
-                if name in r.extra.get("attributes", {})]
-        if rows:
-            out[name] = rows
+        rows = [r for r in results if name in r.extra.get("attributes", {})]
+        if name == "absent":
+            rows = [r for r in rows if r.hidden_iou is not None]
+            if rows:
+                out[name] = [np.where(r.extra["attributes"][name], values(r, True), np.nan) for r in rows]
+        elif rows:
+            out[name] = [np.where(r.extra["attributes"][name], values(r), np.nan) for r in rows]
     return out
 
 
 def attribute_scores(results: list[SequenceResult]) -> dict[str, dict[str, Scores]]:
-    """{tracker: {'all' and each attribute: A, R, ARscore pooled over the counted segments with it}}."""
+    """{tracker: {'all' and each attribute: A, R, ARscore pooled over the tracker's counted segments with it}};
+    `absent`: over its hidden segments, scored apart (protocol rule 6)."""
     out: dict[str, dict[str, Scores]] = {}
     for tracker in dict.fromkeys(r.tracker for r in results):
         ok = [r for r in results if r.tracker == tracker and r.error is None]
-        out[tracker] = {name: pooled([np.where(m, r.iou, np.nan) for r, m in rows])
-                        for name, rows in _masks(ok).items()}
+        out[tracker] = {name: pooled(rows) for name, rows in _scored(ok).items()}
     return out
 
 
 def attribute_ope(results: list[SequenceResult]) -> dict[str, dict[str, dict]]:
-    """{tracker: {'all' and each attribute: success AUC, precision at 20 px, counted segments}} of one-pass runs."""
+    """{tracker: {'all' and each attribute: success AUC, precision at 20 px, the tracker's counted segments}} of
+    one-pass runs; `absent`: over its hidden segments, scored apart (protocol rule 6)."""
     from benchmarks.evaluation.ope import PRECISION_PX, precision_curve, success_curve
 
     out: dict[str, dict[str, dict]] = {}
     for tracker in dict.fromkeys(r.tracker for r in results):
         ok = [r for r in results if r.tracker == tracker and r.error is None]
+        errors = _scored(ok, "centre_error")
         per = {}
-        for name, rows in _masks(ok).items():
-            iou = np.concatenate([np.where(m, r.iou, np.nan) for r, m in rows]) if rows else np.empty(0)
-            err = np.concatenate([np.where(m, r.extra["centre_error"], np.nan) for r, m in rows]) if rows else iou
+        for name, rows in _scored(ok).items():
+            iou = np.concatenate(rows) if rows else np.empty(0)
+            err = np.concatenate(errors[name]) if rows else iou
             s = success_curve(iou)
             per[name] = {"AUC": float(np.mean(s)), f"P@{PRECISION_PX}": float(precision_curve(err)[PRECISION_PX]),
                          "segments": int(np.count_nonzero(~np.isnan(iou)))}
