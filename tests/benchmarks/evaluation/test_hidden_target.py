@@ -22,7 +22,7 @@ def _file(path: Path, n: int, hidden: list[int]) -> Path:
     vis_box, visibility = box.copy(), np.ones(n + 1)
     rows = np.asarray(hidden, int) + 1
     vis_box[rows], visibility[rows] = np.nan, 0.0
-    with DatasetWriter(path, 100, 100, 10_000, {"name": path.stem}) as w:
+    with DatasetWriter(path, 100, 100, 10_000, {"name": path.stem, "split": "test"}) as w:
         w.append_boxes(np.arange(n + 1) * 10_000, box, vis_box, visibility)
         w.close(n * 10_000 + 1)
     return path
@@ -106,3 +106,32 @@ def test_a_file_hidden_after_its_first_segment_has_nothing_to_score(tmp_path):
     assert nothing_to_score(_file(tmp_path / "ok.h5", 8, [1, 2, 3, 4, 5])) is None  # 0 init, hidden, 6 counted
     problem = nothing_to_score(_file(tmp_path / "bad.h5", 8, [1, 2, 3, 4, 5, 6, 7]))
     assert "bad.h5: no segment of 8 can be scored" in problem and "7 more with the target wholly hidden" in problem
+
+
+def test_bench_scores_hidden_segments_apart_or_skips_them(tmp_path, capsys):
+    import json
+
+    from benchmarks.trackers import register
+    from benchmarks.trackers.base import Tracker
+    from dvsot.cli import main
+
+    @register("test-hold-hidden")
+    class Hold(Tracker):
+        """Keeps its first box: right on every segment of a standing target."""
+
+        def init(self, segment, box_xywh, width, height):
+            self.box = box_xywh.copy()
+
+        def update(self, segment):
+            return self.box.copy()
+
+    (tmp_path / "data").mkdir()
+    _file(tmp_path / "data" / "h.h5", 14, [5, 6, 7])
+    for flags, absent in (([], 3), (["--skip-absent"], None)):
+        out = tmp_path / f"bench{len(flags)}"
+        assert main(["bench", "--tracker", "test-hold-hidden", "--data", str(tmp_path / "data"), "--out", str(out),
+                     "--jobs", "1", "--quiet", *flags]) == 0
+        scores = json.loads((out / "attributes.json").read_text())["scores"]["test-hold-hidden"]
+        assert scores["all"]["segments"] == 10
+        assert (scores["absent"]["segments"] if "absent" in scores else None) == absent
+    capsys.readouterr()
