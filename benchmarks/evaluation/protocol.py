@@ -6,11 +6,12 @@ Which segments count (written here once, used for every tracker):
    box at the segment's end.
 2. A segment whose ground truth is absent (NaN: target out of view) or degenerate (width or height
    below `min_box_px`, default 1 px) is skipped: not counted, nothing is asked of the tracker, and the
-   tracker is initialised again on the next segment with a ground truth.
-3. The tracker is initialised with the ground truth on the first segment with a box, and again on
-   the segment after each failure. Initialisation segments are given, not tracked: they do not count.
-4. Every other segment counts: the tracker predicts a box; IoU with the ground truth; a failure when
-   IoU < 0.5, which triggers re-initialisation on the next segment.
+   tracker is initialised again on the next segment with a ground truth (and a visible target, rule 6).
+3. The tracker is initialised with the ground truth on the first segment with a box and a visible
+   target, and again on the next such segment after each failure. Initialisation segments are given,
+   not tracked: they do not count.
+4. Every other segment with a visible target counts: the tracker predicts a box; IoU with the ground
+   truth; a failure when IoU < 0.5, which triggers re-initialisation on the next such segment.
 5. A recording's ground truth exists only at its annotations (`Dataset.annotated`): a segment without
    an annotation matched to it (dvsot.dataset.boxes.match_annotations) is tracked (the tracker predicts on it)
    but neither scored nor able to fail; rules 2-4 apply to the matched segments, so initialisation and
