@@ -28,6 +28,7 @@ The table, JSON and bar chart of the scores per attribute: benchmarks.analysis.a
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,59 +146,60 @@ def _target_points(target) -> np.ndarray:
     return v[:: max(1, len(v) // 256)] * target.size_m
 
 
-def _projected_turn(points: np.ndarray, poses: np.ndarray, cams: np.ndarray, k) -> np.ndarray:
-    """Per step k -> k+1, the target's projected orientation change (radians): the mean image displacement of its
-    points about their projected centre, over their mean distance from it (an in-plane turn by a reads a)."""
-    from dvsot.scene.trajectory import project
+def _project(points: np.ndarray, cams: np.ndarray, k) -> np.ndarray:
+    """Pixel positions (T, P, 2) of world points (T, P, 3), each row seen from its camera pose (T, 4, 4, Blender
+    camera axes); NaN behind the camera (dvsot.scene.trajectory.project, for a pose per row)."""
+    q = np.einsum("tpi,tij->tpj", points - cams[:, None, :3, 3], cams[:, :3, :3])  # x right, y up, -z forward
+    depth = -q[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.stack([k.cx + k.fx * q[..., 0] / depth, k.cy - k.fx * q[..., 1] / depth], axis=-1)
+    out[depth <= 1e-6] = np.nan
+    return out
 
-    offsets = []
-    for pose, cam in zip(poses, cams):
-        world = points @ pose[:3, :3].T + pose[:3, 3]
-        p = project(world, cam, k)
-        offsets.append(p - project(pose[:3, 3], cam, k))
-    q = np.stack(offsets)  # (times, points, 2)
-    radius = np.nanmean(np.hypot(*np.moveaxis(q, -1, 0)), axis=1)
-    moved = np.nanmean(np.linalg.norm(q[1:] - q[:-1], axis=2), axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
+
+def _projected_turn(points: np.ndarray, poses: np.ndarray, cams: np.ndarray, k) -> np.ndarray:
+    """Per step t -> t+1, the target's projected orientation change (radians): the mean image displacement of its
+    points about their projected centre, over their mean distance from it (an in-plane turn by a reads a)."""
+    world = np.einsum("pj,tij->tpi", points, poses[:, :3, :3]) + poses[:, None, :3, 3]
+    q = _project(world, cams, k) - _project(poses[:, None, :3, 3], cams, k)  # (times, points, 2) about the centre
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():  # behind the camera: 0
+        warnings.simplefilter("ignore", RuntimeWarning)
+        radius = np.nanmean(np.hypot(q[..., 0], q[..., 1]), axis=1)
+        moved = np.nanmean(np.linalg.norm(q[1:] - q[:-1], axis=2), axis=1)
         return np.nan_to_num(moved / np.maximum(radius[:-1], 1e-9), nan=0.0)
 
 
 def _background_motion(cfg, cams: np.ndarray, k) -> np.ndarray:
-    """Per step k -> k+1, the median image motion (pixels) of the background seen through a 16 x 12 grid of pixels:
+    """Per step t -> t+1, the median image motion (pixels) of the background seen through a 16 x 12 grid of pixels:
     each ray's hit on the background plane (or its direction, for the environment or a ray past the plane) seen
     again from the next camera pose."""
-    from dvsot.scene.trajectory import pose_and_scale, project
+    from dvsot.scene.schema import Trajectory
+    from dvsot.scene.trajectory import pose_and_scale
 
     u, v = np.meshgrid((np.arange(16) + 0.5) * k.width / 16, (np.arange(12) + 0.5) * k.height / 12)
-    rays_cam = np.stack([(u.ravel() - k.cx) / k.fx, -(v.ravel() - k.cy) / k.fx, -np.ones(u.size)], axis=1)
-    plane = None
+    before = np.stack([u.ravel(), v.ravel()], axis=1)
+    rays_cam = np.stack([(before[:, 0] - k.cx) / k.fx, -(before[:, 1] - k.cy) / k.fx, -np.ones(len(before))], axis=1)
+    c0, c1 = cams[:-1], cams[1:]
+    rays = np.einsum("gj,tij->tgi", rays_cam, c0[:, :3, :3])  # (steps, rays, 3) in the world
+    origin = c0[:, None, :3, 3]
+    far = np.ones(rays.shape[:2], bool)
+    points = np.zeros_like(rays)
     if cfg.background.kind == "plane":
         spec = {"keyframes": [{"t": 0, "location": list(cfg.background.location),
                                "rotation_deg": list(cfg.background.rotation_deg)}]}
-        from dvsot.scene.schema import Trajectory
-
         plane = pose_and_scale(Trajectory.model_validate(spec), 0.0)[0]
-    out = np.zeros(len(cams) - 1)
-    for i in range(len(cams) - 1):
-        c0, c1 = cams[i], cams[i + 1]
-        rays, origin = rays_cam @ c0[:3, :3].T, c0[:3, 3]
-        far = np.ones(len(rays), bool)
-        points = np.zeros_like(rays)
-        if plane is not None:
-            normal, centre = plane[:3, 2], plane[:3, 3]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = float(normal @ (centre - origin)) / (rays @ normal)
-            hit = origin + s[:, None] * rays
-            local = (hit - centre) @ plane[:3, :2]
-            on = (s > 0) & np.all(np.abs(local) <= cfg.background.size_m / 2, axis=1)
-            points[on], far = hit[on], ~on
-        after = np.empty((len(rays), 2))
-        after[~far] = project(points[~far], c1, k)
-        after[far] = project(c1[:3, 3] + rays[far] * 1e6, c1, k)  # a point at infinity: the direction alone
-        before = np.stack([u.ravel(), v.ravel()], axis=1)
-        d = np.linalg.norm(after - before, axis=1)
-        out[i] = float(np.nanmedian(d)) if np.isfinite(d).any() else 0.0
-    return out
+        normal, centre = plane[:3, 2], plane[:3, 3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = ((centre - origin) @ normal) / (rays @ normal)
+            hit = origin + s[..., None] * rays
+            on = (s > 0) & np.all(np.abs((hit - centre) @ plane[:3, :2]) <= cfg.background.size_m / 2, axis=-1)
+        points[on], far = hit[on], ~on
+    # a ray past the plane sees the environment at infinity: its direction alone, from the next camera's place
+    points = np.where(far[..., None], c1[:, None, :3, 3] + rays * 1e6, points)
+    moved = np.linalg.norm(_project(points, c1, k) - before[None], axis=-1)
+    with warnings.catch_warnings():  # a step with every ray behind the camera: no motion measured, 0
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nan_to_num(np.nanmedian(np.where(np.isfinite(moved), moved, np.nan), axis=1), nan=0.0)
 
 
 def _scene_motion(ds: Dataset, n: int) -> tuple[np.ndarray, np.ndarray] | None:
