@@ -121,3 +121,18 @@ def test_rotation_is_the_projected_turn(tmp_path, size):
         assert m["camera"] == pytest.approx(np.zeros(N), abs=1e-9)
         tags = _tags(path)
         assert tags["rotation"].all() == fires and tags["rotation"].any() == fires
+
+
+def test_a_turning_camera_moves_an_environment_at_infinity(tmp_path):
+    # no plane: every ray sees the environment, whose image moves by fx * turn rate whatever the distance, times
+    # 1 + x^2 / fx^2 at x px from the centre: the grid's median |x| is 160 px (fx 500 px: 20 deg/s is 0.19 px/ms,
+    # 8 deg/s 0.08)
+    for rate, fires in ((20.0, True), (8.0, False)):
+        camera = (f"[{{t: 0, location: [0, -10, 0], rotation_deg: [90, 0, 0]}}, "
+                  f"{{t: 0.06, location: [0, -10, 0], rotation_deg: [90, 0, {rate * 0.06}]}}]")
+        scene = _scene((640, 480), camera) + "background: {kind: environment}\n"
+        path = _boxes_file(tmp_path / f"e{rate}.h5", (640, 480), [10, 10, 20, 20], scene=scene)
+        with Dataset(path) as ds:
+            moved = segment_measures(ds)["camera"]
+        assert moved == pytest.approx(np.full(N, 500 * np.radians(rate) * (1 + 0.32**2) / 1000), rel=0.02)
+        assert _tags(path)["camera_motion"].all() == fires and _tags(path)["camera_motion"].any() == fires
