@@ -25,13 +25,9 @@ def _columns(summary: dict) -> list[str]:
     return [n for n in (ALL, *ATTRIBUTES) if n in names]
 
 
-def _counts(summary: dict, cols: list[str], protocol: str) -> list[int]:
-    """Counted segments per column: the first tracker's that has it (every tracker runs on the same files)."""
-    counts = []
-    for c in cols:
-        v = next(per[c] for per in summary.values() if c in per)
-        counts.append(v.segments if protocol == "ar" else v["segments"])
-    return counts
+def _count(v, protocol: str) -> int:
+    """Counted segments of one tracker's cell: each tracker has its own (re-initialisations differ)."""
+    return v.segments if protocol == "ar" else v["segments"]
 
 
 def _f(v: float) -> str:
@@ -40,11 +36,9 @@ def _f(v: float) -> str:
 
 def format_attributes(summary: dict, protocol: str = "ar") -> str:
     """A Markdown table, a row per tracker, a column per attribute beside 'all': ARscore (A / R), or AUC (P@20)
-    for one-pass runs; the counted segments under each header."""
+    for one-pass runs, and the tracker's own counted segments in each cell."""
     cols = _columns(summary)
-    counts = _counts(summary, cols, protocol)
-    lines = ["| tracker | " + " | ".join(f"{c} ({k} seg)" for c, k in zip(cols, counts)) + " |",
-             "|---" * (len(cols) + 1) + "|"]
+    lines = ["| tracker | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for tracker, per in summary.items():
         cells = []
         for c in cols:
@@ -52,13 +46,16 @@ def format_attributes(summary: dict, protocol: str = "ar") -> str:
             if v is None:
                 cells.append("")
             elif protocol == "ar":
-                cells.append(f"**{_f(v.arscore)}** ({_f(v.accuracy)} / {_f(v.robustness)})")
+                cells.append(f"**{_f(v.arscore)}** ({_f(v.accuracy)} / {_f(v.robustness)}), {_count(v, protocol)} seg")
             else:
-                cells.append(f"**{_f(v['AUC'])}** ({_f(v[f'P@{PRECISION_PX}'])})")
+                cells.append(f"**{_f(v['AUC'])}** ({_f(v[f'P@{PRECISION_PX}'])}), {_count(v, protocol)} seg")
         lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + " |")
     what = "ARscore (A / R)" if protocol == "ar" else "success AUC (precision at 20 px)"
-    return "\n".join(lines) + f"\n\nEach cell: {what} over the counted segments with the attribute " \
-                              "(benchmarks/evaluation/attributes.py; thresholds in THRESHOLDS).\n"
+    return "\n".join(lines) + f"\n\nEach cell: {what} over the tracker's counted segments with the attribute, " \
+                              "and how many (each tracker's own: re-initialisations differ); `absent`: the " \
+                              "segments with the target wholly hidden, scored apart (not in 'all' or any other " \
+                              "column; benchmarks/evaluation/protocol.py, rule 6). benchmarks/evaluation/" \
+                              "attributes.py; thresholds in THRESHOLDS.\n"
 
 
 def attributes_json(summary: dict, protocol: str = "ar") -> dict:
@@ -73,7 +70,8 @@ def attributes_json(summary: dict, protocol: str = "ar") -> dict:
 
 
 def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar") -> Path:
-    """A bar chart: per attribute (and 'all'), each tracker's ARscore (or success AUC); written atomically."""
+    """A bar chart: per attribute (and 'all'), each tracker's ARscore (or success AUC) with its own counted segments
+    over its bar; written atomically."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -87,12 +85,14 @@ def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar"
     width = 0.8 / max(len(summary), 1)
     for k, (tracker, per) in enumerate(summary.items()):
         values = [np.nan if c not in per else (per[c].arscore if protocol == "ar" else per[c]["AUC"]) for c in cols]
-        ax.bar(np.arange(len(cols)) + k * width, np.nan_to_num(values), width, label=plot_text(tracker))
+        bars = ax.bar(np.arange(len(cols)) + k * width, np.nan_to_num(values), width, label=plot_text(tracker))
+        ax.bar_label(bars, labels=["" if c not in per else str(_count(per[c], protocol)) for c in cols],
+                     fontsize=6, rotation=90, padding=2)
     ax.set_xticks(np.arange(len(cols)) + width * (len(summary) - 1) / 2)
-    ax.set_xticklabels([f"{c} ({k})" for c, k in zip(cols, _counts(summary, cols, protocol))], rotation=30, ha="right")
+    ax.set_xticklabels(cols, rotation=30, ha="right")
     ax.set_ylabel("ARscore" if protocol == "ar" else "success AUC")
-    ax.set_ylim(0, 1.02)
-    ax.set_title("per attribute (counted segments in brackets)")
+    ax.set_ylim(0, 1.15)
+    ax.set_title("per attribute (each tracker's counted segments over its bar)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
     path = Path(path)

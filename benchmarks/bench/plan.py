@@ -40,6 +40,7 @@ class Plan:
     tracker_modules: list[str] = field(default_factory=list)
     scheduler: str | None = None
     videos: list[str] = field(default_factory=list)
+    skip_absent: bool = False  # protocol rule 6: hidden-target segments left unscored rather than scored apart
 
 
 def _options(specs: list[str], trackers: list[str], labels: Mapping[str, str] | None = None) -> dict[str, dict]:
@@ -181,7 +182,8 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
                    out_dir: str | Path | None = None, jobs: int | None = None, scheduler: str | None = None,
                    tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
                    videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
-                   options: Sequence[str] = (), protocol: str = "ar", labels: Mapping[str, str] | None = None) -> Plan:
+                   options: Sequence[str] = (), protocol: str = "ar", labels: Mapping[str, str] | None = None,
+                   skip_absent: bool = False) -> Plan:
     """Check every input and output of a run; UserError (and nothing done) on the first problem.
 
     options are TRACKER.KEY=VALUE strings; messages name the settings by these parameters' names, or as
@@ -263,7 +265,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     tasks = [(t, str(f)) for t in trackers for f in files]
     jobs = jobs or min(2, os.cpu_count() or 1, len(tasks))
     return Plan(trackers, files, sequences, options, out_dir, jobs, model, ann_models, notes, tasks, max_segments,
-                protocol, list(tracker_modules), scheduler, list(videos))
+                protocol, list(tracker_modules), scheduler, list(videos), skip_absent)
 
 
 def track(p: Plan, progress: bool = True) -> list:
@@ -271,7 +273,7 @@ def track(p: Plan, progress: bool = True) -> list:
     from benchmarks.evaluation.runner import benchmark
 
     return benchmark(p.trackers, p.files, p.options, p.jobs, p.max_segments, p.protocol, p.tracker_modules,
-                     progress=progress, scheduler=p.scheduler)
+                     progress=progress, scheduler=p.scheduler, skip_absent=p.skip_absent)
 
 
 @dataclass
@@ -318,7 +320,7 @@ def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, sp
                   videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
                   options: Sequence[str] = (), protocol: str = "ar", progress: bool = True,
                   show: Callable[[BenchmarkRun], None] | None = None,
-                  labels: Mapping[str, str] | None = None) -> BenchmarkRun:
+                  labels: Mapping[str, str] | None = None, skip_absent: bool = False) -> BenchmarkRun:
     """Check everything (plan_benchmark), run every tracker on every sequence, make and write the tables.
 
     `show` gets the finished run before any file is written (its `paths` still empty); a tracker that
@@ -329,7 +331,7 @@ def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, sp
     from benchmarks.analysis.tables import summarise
 
     p = plan_benchmark(trackers, data, split, out_dir, jobs, scheduler, tracker_modules, max_segments, plots, videos,
-                       checkpoint, energy, options, protocol, labels)
+                       checkpoint, energy, options, protocol, labels, skip_absent)
     results = track(p, progress)
     if protocol == "ope":
         from benchmarks.evaluation.ope import summarise_ope

@@ -1,9 +1,11 @@
 """One-pass evaluation (OPE, as OTB, GOT-10k, FE108 and VisEvent report it): success AUC and precision at 20 px.
 
-The tracker is initialised once, on the first segment with a ground-truth box, and predicts every
-later segment with no re-initialisation (`run_sequence(..., reinitialise=False)`). Every later
-segment with a box counts (for a recording: every later segment matched to an annotation with a
-box); a prediction that is not finite counts as IoU 0 and an infinite centre error.
+The tracker is initialised once, on the first segment with a ground-truth box and a visible target, and
+predicts every later segment with no re-initialisation (`run_sequence(..., reinitialise=False)`). Every
+later segment with a box and a visible target counts (for a recording: every later segment matched to an
+annotation with a box); a segment whose target is wholly hidden is scored apart (protocol rule 6: the
+`absent` column of the attribute tables) or, with skip_absent, not at all; a prediction that is not finite
+counts as IoU 0 and an infinite centre error.
 
 - Success curve: the fraction of counted segments with IoU > t, for t = 0, 0.05, ..., 1 (21
   thresholds, OTB's); success AUC is its mean.
@@ -51,11 +53,15 @@ def precision_curve(errors: np.ndarray) -> np.ndarray:
 
 
 def add_centre_errors(result: SequenceResult, gt: np.ndarray) -> SequenceResult:
-    """Store the counted segments' centre errors (pixels, NaN elsewhere) in result.extra['centre_error']."""
-    err = np.full(len(result.iou), np.nan)
-    counted = ~np.isnan(result.iou)
-    err[counted] = centre_errors(result.predictions[counted], gt[: len(result.iou)][counted])
-    result.extra["centre_error"] = err
+    """Store the counted segments' centre errors (pixels, NaN elsewhere) in result.extra['centre_error'], and the
+    hidden segments' scored apart (protocol rule 6) in result.extra['hidden_centre_error']."""
+    gt = gt[: len(result.iou)]
+    for key, iou in (("centre_error", result.iou), ("hidden_centre_error", result.hidden_iou)):
+        err = np.full(len(result.iou), np.nan)
+        if iou is not None:
+            counted = ~np.isnan(iou)
+            err[counted] = centre_errors(result.predictions[counted], gt[counted])
+        result.extra[key] = err
     return result
 
 

@@ -12,8 +12,9 @@ PROTOCOLS = ("ar", "ope")  # the paper's A / R with re-initialisation; one pass 
 
 
 def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_segments: int | None = None,
-            options: dict | None = None, protocol: str = "ar") -> SequenceResult:
-    """One tracker on one dataset file; a tracker that fails to build or crashes gives a result with `error` set."""
+            options: dict | None = None, protocol: str = "ar", skip_absent: bool = False) -> SequenceResult:
+    """One tracker on one dataset file; a tracker that fails to build or crashes gives a result with `error` set;
+    skip_absent leaves segments with the target wholly hidden unscored (protocol rule 6) instead of apart."""
     import numpy as np
 
     from benchmarks.evaluation.protocol import run_sequence
@@ -32,7 +33,8 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
                                   error=exception_line(exc))
         if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
             sys.modules["torch"].set_num_threads(1)
-        result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope")
+        result = run_sequence(instance, ds, tracker, max_segments=max_segments, reinitialise=protocol != "ope",
+                              skip_absent=skip_absent)
         if result.error is None:
             from benchmarks.evaluation.attributes import add_attributes
 
@@ -66,9 +68,9 @@ def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None =
 def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dict[str, dict] | None = None,
               jobs: int = 1, max_segments: int | None = None, protocol: str = "ar",
               tracker_modules: Sequence[str] = (), progress: bool = False,
-              scheduler: str | None = None) -> list[SequenceResult]:
+              scheduler: str | None = None, skip_absent: bool = False) -> list[SequenceResult]:
     """Every tracker on every file (tracker by tracker), here (jobs 1) or in `jobs` worker processes (local:N);
-    options: {tracker: {key: value}}.
+    options: {tracker: {key: value}}; skip_absent as run_one takes it.
 
     scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) there (dvsot.runtime.dask_tasks;
     the files must be at the same paths on the workers). Unknown trackers, jobs < 1, max_segments < 1, an
@@ -103,12 +105,12 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     if scheduler or jobs > 1:  # one Dask task per run: --jobs N is local:N (dvsot.runtime.dask_tasks)
         from dvsot.runtime.dask_tasks import map_tasks
 
-        calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol) for t, f in tasks]
+        calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol, skip_absent) for t, f in tasks]
         results = map_tasks(scheduler or f"local:{jobs}", run_one, calls, lambda k, r: bar.update(1))
     else:
         for k, (t, f) in enumerate(tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol)
+            results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol, skip_absent)
             bar.update(1)
     bar.close()
     return results

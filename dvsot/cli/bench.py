@@ -77,6 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--protocol", choices=["ar", "ope"], default="ar",
                    help="ar: the paper's A / R / ARscore with re-initialisation (default); ope: one pass, "
                         "success AUC and precision at 20 px")
+    p.add_argument("--skip-absent", action="store_true",
+                   help="leave segments whose target is wholly hidden unscored, as GOT-10k does (default: scored "
+                        "apart, in the attribute table's absent column, as VOT-LT treats full occlusion)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -86,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
 
     done = run_benchmark(args.tracker, args.data, args.split, args.out, args.jobs, args.scheduler, args.tracker_module,
                          args.max_segments, args.plots, args.video, args.checkpoint, not args.no_energy, args.option,
-                         args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)), labels=FLAGS)
+                         args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)), labels=FLAGS,
+                         skip_absent=args.skip_absent)
     print("written: " + ", ".join(str(x) for x in done.paths.values()))
     for r in done.failed:
         print(f"dvsot bench: failed: {r.tracker} on {r.sequence}: {r.error}", file=sys.stderr)
