@@ -13,7 +13,7 @@ The names (what exports and tables call them):
 - absent: nothing of the target visible at the segment's end, or outside the sensor (`/segments/absent`);
 - out_of_view: at least `out_of_view_truncation` of the target's whole silhouette off the sensor (LaSOT's
   out_of_view; `/segments/truncation`);
-- cut_by_image: any of the target's silhouette off the sensor (truncation above 0: GOT-10k's cut_by_image);
+- cut_by_image: any of the target's silhouette off the sensor (truncation above `CUT_BY_IMAGE_TRUNCATION`, 0.01, dvsot.dataset.tags: GOT-10k's cut_by_image);
 - fast_motion: the ground-truth box centre moving more than `fast_sizes_per_segment` target sizes (the square root
   of the box's area) since the previous segment;
 - small_target: the ground-truth box's area, scaled to a 640x480 sensor, below `small_area_px`;
@@ -36,6 +36,7 @@ import numpy as np
 from benchmarks.evaluation.metrics import ALL, Scores, pooled
 from benchmarks.evaluation.protocol import SequenceResult
 from dvsot.dataset import Dataset
+from dvsot.dataset.tags import CUT_BY_IMAGE_TRUNCATION, OCCLUSION_VISIBILITY, OUT_OF_VIEW_TRUNCATION
 
 ATTRIBUTES = ("occlusion", "absent", "out_of_view", "cut_by_image", "fast_motion", "small_target",
               "low_event_density", "rotation", "camera_motion", "distractor_nearby")
@@ -47,8 +48,9 @@ class Thresholds:
     """The attributes' cuts: visibility and truncation 0..1, target sizes per segment, px^2 at 640x480, events/px/ms,
     deg/s of projected orientation, px/ms at 640x480, share of events 0..1."""
 
-    occlusion_visibility: float = 0.9
-    out_of_view_truncation: float = 0.5
+    occlusion_visibility: float = OCCLUSION_VISIBILITY  # the exports' tags use the same cuts (dvsot.dataset.tags)
+    out_of_view_truncation: float = OUT_OF_VIEW_TRUNCATION
+    cut_by_image_truncation: float = CUT_BY_IMAGE_TRUNCATION  # a silhouette touching the edge rasterises a few px off
     fast_sizes_per_segment: float = 0.05
     small_area_px: float = 400.0
     low_density: float = 0.01
@@ -104,7 +106,7 @@ def segment_attributes(ds: Dataset, n: int | None = None, th: Thresholds = THRES
     if "truncation" in m:
         trunc = np.nan_to_num(m["truncation"], nan=1.0)  # NaN: outside the track, wholly off the sensor
         out["out_of_view"] = trunc >= th.out_of_view_truncation
-        out["cut_by_image"] = trunc > 0
+        out["cut_by_image"] = trunc > th.cut_by_image_truncation
     out["fast_motion"] = np.nan_to_num(m["motion"], nan=0.0) > th.fast_sizes_per_segment
     out["small_target"] = have & (m["area_share"] * (REFERENCE_PX[0] * REFERENCE_PX[1]) < th.small_area_px)
     out["low_event_density"] = have & (m["density"] < th.low_density)
