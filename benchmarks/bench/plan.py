@@ -18,7 +18,8 @@ from typing import Callable, Mapping, Sequence
 from dvsot.core.errors import label
 
 DEFAULT_DATA = "data/dvsot21"
-CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
+# trackers with a `checkpoint` option
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc", "goturn", "siamrpn", "siammask")
 
 
 @dataclass
@@ -221,7 +222,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
         if not takers:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: only used by {label('trackers', labels)} "
-                            "sctn, sctn_ann or siamfc, none of which is in this run")
+                            f"{', '.join(CHECKPOINT_TRACKERS)}, none of which is in this run")
         if len(takers) > 1:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: {', '.join(takers)} all take a checkpoint; "
                             f"give each its own with {option_label} NAME.checkpoint=PATH")

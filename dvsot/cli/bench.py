@@ -67,8 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
     p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
-    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann or siamfc (default: the "
-                                        "shipped one); an error without one of them, or with several")
+    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann, siamfc, goturn, siamrpn or "
+                                        "siammask (default: the shipped one; none ships for the last three); an "
+                                        "error without one of them, or with several")
     p.add_argument("--no-energy", action="store_true", help="skip the energy table (made when sctn, sctn_ann or "
                                                            "siamfc runs)")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
