@@ -32,7 +32,7 @@ def load_trained(path: str | os.PathLike | None, kind: str, label: str,
 
     if path is None and not default_path(kind).is_file():
         raise UserError(f"{kind}: no shipped checkpoint exists (no such checkpoint {default_path(kind)}); train one "
-                        f"with `dvsot train --model {kind} -o runs/{kind}.pt` and give it with --checkpoint")
+                        f"with `dvsot train --model {kind} -o {kind}.pt` and give it with --checkpoint {kind}.pt")
     return load_model(path, default_path(kind), kind, label, build)
 
 
