@@ -37,7 +37,8 @@ def split_items(lengths: Sequence[int], n_train: int, has_val_files: bool) -> tu
 
 def train_pairs(name: str, model: torch.nn.Module, seqs: list, n_train: int, val_files: list[Path] | None,
                 cfg: TrainBudget, batch: Callable[[list, np.random.Generator], tuple],
-                loss: Callable[[torch.nn.Module, tuple], torch.Tensor], evaluate: Callable[[torch.nn.Module, tuple], dict],
+                loss: Callable[[torch.nn.Module, tuple], torch.Tensor],
+                evaluate: Callable[[torch.nn.Module, tuple], dict],
                 report: Callable[[dict], str], progress: bool = True,
                 val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[torch.nn.Module, dict]:
     """Train `model` with Adam on items of `seqs` (objects with a `segments` array); `batch(items, rng)` makes a

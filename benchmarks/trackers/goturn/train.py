@@ -62,8 +62,8 @@ def iou_xyxy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """IoU (B,) of corner boxes a and b (B, 4) (x1, y1, x2, y2)."""
     lo, hi = np.maximum(a[:, :2], b[:, :2]), np.minimum(a[:, 2:], b[:, 2:])
     inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
-    area = lambda c: np.prod(np.clip(c[:, 2:] - c[:, :2], 0, None), axis=1)  # noqa: E731
-    return inter / np.maximum(area(a) + area(b) - inter, 1e-9)
+    areas = [np.prod(np.clip(c[:, 2:] - c[:, :2], 0, None), axis=1) for c in (a, b)]
+    return inter / np.maximum(areas[0] + areas[1] - inter, 1e-9)
 
 def train_goturn(files: list[Path], cfg: GOTURNTrainConfig, progress: bool = True,
                  val_files: list[Path] | None = None,

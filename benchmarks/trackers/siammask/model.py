@@ -23,7 +23,7 @@ from pydantic import Field
 from torch import nn
 
 from benchmarks.trackers.reference_nets import SiameseNet, conv_bn, depthwise_xcorr
-from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPNConfig, alexnet_trunk
+from benchmarks.trackers.siamrpn.model import SiamRPNConfig, alexnet_trunk
 
 KIND = "siammask"
 NARROWING = ("trunk AlexNet/4 (24-64-96-96-64) for ResNet-50, branches 64 channels, mask 31x31, "

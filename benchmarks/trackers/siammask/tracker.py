@@ -18,7 +18,8 @@ from pydantic import Field
 
 from benchmarks.trackers import register
 from benchmarks.trackers.siammask.masks import mask_box, window_centre, window_probabilities
-from benchmarks.trackers.siammask.model import TOTAL_STRIDE, SiamMask
+from benchmarks.trackers.siammask.model import SiamMask
+from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
 from benchmarks.trackers.siamrpn.tracker import RPNTracker
 from dvsot.core.strict import Float, Strict
 from dvsot.dataset import Segment

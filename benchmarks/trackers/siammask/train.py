@@ -23,8 +23,9 @@ from torch.nn import functional as F
 from benchmarks.trackers.pair_training import pools_of, train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from benchmarks.trackers.siammask.masks import mask_targets
-from benchmarks.trackers.siammask.model import TOTAL_STRIDE, SiamMask, SiamMaskConfig
+from benchmarks.trackers.siammask.model import SiamMask, SiamMaskConfig
 from benchmarks.trackers.siamrpn.anchors import make_anchors
+from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
 from benchmarks.trackers.siamrpn.crops import search_crop, search_window, template_crop
 from benchmarks.trackers.siamrpn.train import SiamRPNTrainConfig, best_boxes, box_iou_cxcywh, rpn_loss, rpn_targets
 

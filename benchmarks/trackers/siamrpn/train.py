@@ -114,7 +114,7 @@ def train_siamrpn(files: list[Path], cfg: SiamRPNTrainConfig, progress: bool = T
             scores, offsets = model(b[0], b[1])
             value = float(rpn_loss(scores, offsets, b[2], b[3], cfg.reg_weight))
         found = best_boxes(scores, offsets, anchors)
-        err = np.hypot(*(found[:, :2] - b[4][:, :2]).T) * 1.0
+        err = np.hypot(*(found[:, :2] - b[4][:, :2]).T)
         return {"loss": value, "centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, b[4]).mean())}
 
     model, history = train_pairs(

@@ -222,7 +222,7 @@ def test_three_training_steps_run_and_validate(square, disc, model):
 
     cfg = configure(model, model_settings(model, SMOKE))
     files = [disc] if model == "siammask" else [square]
-    net, history = resolve(trainer(model).train)(files, cfg, progress=False)
+    _, history = resolve(trainer(model).train)(files, cfg, progress=False)
     assert history["steps"] == 3 and len(history["train_loss"]) == 3 and np.isfinite(history["train_loss"]).all()
     assert history["val"] and np.isfinite(history["val"][-1]["loss"])
     if model == "siammask":
@@ -270,7 +270,8 @@ def test_checkpoints_of_another_model_or_with_bad_weights_are_refused_in_one_lin
     for other in ("goturn", "siammask"):
         with pytest.raises(UserError) as err:
             get_tracker(other, checkpoint=str(rpn))
-        assert str(err.value) == f"{rpn}: holds a siamrpn model, not a {other} one (a checkpoint of the siamrpn tracker)"
+        assert str(err.value) == (f"{rpn}: holds a siamrpn model, not a {other} one "
+                                  "(a checkpoint of the siamrpn tracker)")
     nan = _resave(_save(SiamRPN(), tmp_path / "nan.pt", "siamrpn"),
                   lambda s: s["cls_x.weight"].view(-1).__setitem__(0, float("nan")))
     missing = _resave(_save(SiamRPN(), tmp_path / "missing.pt", "siamrpn"), lambda s: s.pop("adjust.bias"))
