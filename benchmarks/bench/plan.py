@@ -222,7 +222,8 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
         if not takers:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: only used by {label('trackers', labels)} "
-                            f"{', '.join(CHECKPOINT_TRACKERS)}, none of which is in this run")
+                            f"{', '.join(CHECKPOINT_TRACKERS[:-1])} or {CHECKPOINT_TRACKERS[-1]}, none of which is "
+                            "in this run")
         if len(takers) > 1:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: {', '.join(takers)} all take a checkpoint; "
                             f"give each its own with {option_label} NAME.checkpoint=PATH")
