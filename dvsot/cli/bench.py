@@ -13,10 +13,10 @@ protocol) VOT trajectories (benchmarks/analysis/sequence_files.py).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
---checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc): an
-error without one or with several (give each its own with --option NAME.checkpoint=PATH); a
-checkpoint of another model is refused naming the model it holds. The energy table (Table 3) is made
-when any of those three runs: SCTN's rows from the run's SCTN checkpoint (or the shipped one), the ANN
+--checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc, goturn,
+siamrpn, siammask; the last three ship none): an error without one or with several (give each its own with
+--option NAME.checkpoint=PATH); a checkpoint of another model is refused naming the model it holds. The
+energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the shipped one), the ANN
 rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
 
 Outputs are written only when every run has finished, as temp files renamed into place together
@@ -50,8 +50,8 @@ FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot bench`."""
     p.add_argument("--tracker", action="append", required=True, metavar="NAME",
-                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, rct, csrt, kcf, mil or one you "
-                        "registered")
+                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, goturn, siamrpn, siammask, rct, "
+                        "csrt, kcf, mil or one you registered")
     p.add_argument("--data", nargs="+", default=None,
                    help=f"dataset files, directories or globs (default: {DEFAULT_DATA})")
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
