@@ -58,10 +58,20 @@ def narrowing(ours: torch.nn.Module, reference: torch.nn.Module, in_channels: in
             "frame_macs_ratio": macs / ref["per_frame"]["mac_ops"]}
 
 
-def check_sensor(name: str, width: int, height: int, min_px: int = 8) -> tuple[int, int]:
+MIN_SENSOR_PX = 8  # a smaller frame holds no target these crops can resolve
+
+
+def sensor_problem(name: str, width: int, height: int) -> str | None:
+    """Why tracker `name` cannot take frames of width x height px, or None."""
+    if int(width) < MIN_SENSOR_PX or int(height) < MIN_SENSOR_PX:
+        return (f"{name}: a {int(width)}x{int(height)} px frame is smaller than the {MIN_SENSOR_PX}x{MIN_SENSOR_PX} "
+                "px this network's crops need")
+    return None
+
+
+def check_sensor(name: str, width: int, height: int) -> tuple[int, int]:
     """(width, height) of a sensor the tracker can crop from; UserError naming the size otherwise."""
-    w, h = int(width), int(height)
-    if w < min_px or h < min_px:
-        raise UserError(f"{name}: a {w}x{h} px frame is smaller than the {min_px}x{min_px} px this network's crops "
-                        f"need")
-    return w, h
+    problem = sensor_problem(name, width, height)
+    if problem:
+        raise UserError(problem)
+    return int(width), int(height)

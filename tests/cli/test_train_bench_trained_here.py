@@ -70,3 +70,20 @@ def test_bench_refuses_another_models_checkpoint(data, tmp_path, capsys):
     assert len(err) == 1 and err[0].endswith(f"{ckpt}: holds a goturn model, not a siammask one (a checkpoint of the "
                                              "goturn tracker)")
     assert not bench.exists()
+
+
+def test_bench_refuses_a_frame_size_the_network_cannot_take_before_scoring(tmp_path, capsys):
+    from benchmarks.trackers.siamrpn.model import SiamRPN
+    from sctn.checkpoint import save_checkpoint
+
+    (tmp_path / "tiny").mkdir()
+    tiny = moving_square_file(tmp_path / "tiny" / "t.h5", width=6, height=6, size=3, duration_ms=40,
+                              velocity_px_s=(20.0, 0.0), start=(1.0, 1.0), split="test")
+    ckpt = save_checkpoint(tmp_path / "r.pt", SiamRPN(), {}, kind="siamrpn")
+    bench = tmp_path / "bench"
+    assert main(["bench", "--tracker", "siamrpn", "--checkpoint", str(ckpt), "--data", str(tmp_path / "tiny"),
+                 "--out", str(bench), "--jobs", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith(f"{tiny}: siamrpn: a 6x6 px frame is smaller than the 8x8 px this "
+                                             "network's crops need"), err
+    assert not bench.exists()

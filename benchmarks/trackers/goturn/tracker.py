@@ -17,7 +17,7 @@ from benchmarks.trackers.atsltd import atsltd_frame
 from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.goturn.crops import crop_region, decode, region
 from benchmarks.trackers.goturn.model import GOTURN
-from benchmarks.trackers.trained_here import check_sensor
+from benchmarks.trackers.trained_here import check_sensor, sensor_problem
 from dvsot.core.strict import Strict
 from dvsot.dataset import Segment
 
@@ -53,6 +53,11 @@ class GOTURNTracker(Tracker):
         self.model = model
         self.prev_frame: np.ndarray | None = None
         self._macs: dict | None = None
+
+    @classmethod
+    def frame_problem(cls, width: int, height: int) -> str | None:
+        """Why this tracker cannot take frames of width x height px, or None (checked before a run)."""
+        return sensor_problem("goturn", width, height)
 
     def _frame(self, segment: Segment) -> np.ndarray:
         window = max(1, int(segment.t1_us) - int(segment.t0_us))

@@ -22,7 +22,7 @@ from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamrpn.anchors import decode, make_anchors
 from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN
-from benchmarks.trackers.trained_here import check_sensor
+from benchmarks.trackers.trained_here import check_sensor, sensor_problem
 from dvsot.core.strict import Float, Strict
 from dvsot.dataset import Segment
 
@@ -97,6 +97,11 @@ class RPNTracker(Tracker):
         self.window = np.tile(hann.ravel(), len(cfg.ratios))
         self.cached = None
         self._macs: dict | None = None
+
+    @classmethod
+    def frame_problem(cls, width: int, height: int) -> str | None:
+        """Why this tracker cannot take frames of width x height px, or None (checked before a run)."""
+        return sensor_problem(cls.kind, width, height)
 
     def _frame(self, segment: Segment) -> np.ndarray:
         window = max(1, int(segment.t1_us) - int(segment.t0_us))
