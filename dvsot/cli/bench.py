@@ -16,8 +16,8 @@ Before anything runs, every input is checked: flags, data files, --video names, 
 --checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc, goturn,
 siamrpn, siammask; the last three ship none): an error without one or with several (give each its own with
 --option NAME.checkpoint=PATH); a checkpoint of another model is refused naming the model it holds. The
-energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the shipped one), the ANN
-rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
+energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the
+shipped one), the ANN rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
 
 Outputs are written only when every run has finished, as temp files renamed into place together
 (then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
