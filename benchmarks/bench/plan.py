@@ -18,7 +18,8 @@ from typing import Callable, Mapping, Sequence
 from dvsot.core.errors import label
 
 DEFAULT_DATA = "data/dvsot21"
-CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
+# trackers with a `checkpoint` option
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc", "goturn", "siamrpn", "siammask")
 
 
 @dataclass
@@ -129,6 +130,22 @@ def check_trackers(trackers: list[str], options: dict[str, dict], specs: list[st
             raise _option_error(name, options.get(name, {}), exc, specs, labels) from None
 
 
+def check_frame_sizes(trackers: list[str], files: list[Path]) -> None:
+    """UserError naming the file if a tracker with a `frame_problem(width, height)` cannot take its frames."""
+    from benchmarks.trackers import tracker_class
+    from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
+
+    checks = [c.frame_problem for c in map(tracker_class, trackers) if hasattr(c, "frame_problem")]
+    for f in files if checks else []:
+        with Dataset(f) as ds:
+            wh = (ds.width, ds.height)
+        for check in checks:
+            problem = check(*wh)
+            if problem:
+                raise UserError(f"{f}: {problem}")
+
+
 # report_files' kinds, as the settings that ask for them (and what the file is, where that is not the setting's job)
 _WHO_ASKS = {"tables": ("out_dir", ""), "manifest": ("out_dir", " (the run's manifest)"), "plots": ("plots", ""),
              "video": ("videos", ""), "energy": ("out_dir", " (energy table)")}
@@ -223,7 +240,8 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         takers = [t for t in trackers if t in CHECKPOINT_TRACKERS]
         if not takers:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: only used by {label('trackers', labels)} "
-                            "sctn, sctn_ann or siamfc, none of which is in this run")
+                            f"{', '.join(CHECKPOINT_TRACKERS[:-1])} or {CHECKPOINT_TRACKERS[-1]}, none of which is "
+                            "in this run")
         if len(takers) > 1:
             raise UserError(f"{label('checkpoint', labels)} {checkpoint}: {', '.join(takers)} all take a checkpoint; "
                             f"give each its own with {option_label} NAME.checkpoint=PATH")
@@ -240,6 +258,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         problem = nothing_to_score(f, max_segments, reinitialise=protocol == "ar")
         if problem:
             raise UserError(problem)
+    check_frame_sizes(trackers, files)
     named: dict[str, str] = {}
     video_label = label("videos", labels)
     for seq in videos:

@@ -137,3 +137,9 @@ register_trainer("siamfc", Trainer(
     train="benchmarks.trackers.siamfc.train:train_siamfc",
     config="benchmarks.trackers.siamfc.train:SiamFCTrainConfig",
     tracker="benchmarks.training.run:siamfc_tracker"))
+for _name, _module, _cls in (("goturn", "goturn", "GOTURN"), ("siamrpn", "siamrpn", "SiamRPN"),
+                             ("siammask", "siammask", "SiamMask")):
+    register_trainer(_name, Trainer(
+        train=f"benchmarks.trackers.{_module}.train:train_{_name}",
+        config=f"benchmarks.trackers.{_module}.train:{_cls}TrainConfig",
+        tracker=f"benchmarks.trackers.{_module}.tracker:validation_tracker"))

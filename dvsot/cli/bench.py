@@ -13,11 +13,11 @@ protocol) VOT trajectories (benchmarks/analysis/sequence_files.py).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
---checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc): an
-error without one or with several (give each its own with --option NAME.checkpoint=PATH); a
-checkpoint of another model is refused naming the model it holds. The energy table (Table 3) is made
-when any of those three runs: SCTN's rows from the run's SCTN checkpoint (or the shipped one), the ANN
-rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
+--checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc, goturn,
+siamrpn, siammask; the last three ship none): an error without one or with several (give each its own with
+--option NAME.checkpoint=PATH); a checkpoint of another model is refused naming the model it holds. The
+energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the
+shipped one), the ANN rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
 
 Outputs are written only when every run has finished, as temp files renamed into place together
 (then run.json, the manifest naming the run and each file's SHA-256), so an interrupted or killed run
@@ -50,8 +50,8 @@ FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot bench`."""
     p.add_argument("--tracker", action="append", required=True, metavar="NAME",
-                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, rct, csrt, kcf, mil or one you "
-                        "registered")
+                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, goturn, siamrpn, siammask, rct, "
+                        "csrt, kcf, mil or one you registered")
     p.add_argument("--data", nargs="+", default=None,
                    help=f"dataset files, directories or globs (default: {DEFAULT_DATA})")
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
@@ -67,8 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
     p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
-    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann or siamfc (default: the "
-                                        "shipped one); an error without one of them, or with several")
+    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann, siamfc, goturn, siamrpn or "
+                                        "siammask (default: the shipped one; none ships for the last three); an "
+                                        "error without one of them, or with several")
     p.add_argument("--no-energy", action="store_true", help="skip the energy table (made when sctn, sctn_ann or "
                                                            "siamfc runs)")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",

@@ -20,7 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from benchmarks.training.registry import TRAINERS
 
     p.add_argument("--model", choices=list(TRAINERS), default="sctn",
-                   help="sctn (default), sctn_ann (SCTN's layers with ReLU) or siamfc (on ATSLTD frames)")
+                   help="sctn (default), sctn_ann (SCTN's layers with ReLU), or on ATSLTD frames siamfc, "
+                        "goturn, siamrpn, siammask")
     p.add_argument("--data", nargs="+", default=["data/dvsot21"], help="dataset files, directories or globs")
     p.add_argument("--split", default="train", help="split attribute to train on, or 'any' (default train)")
     p.add_argument("-o", "--output", default=None, help="checkpoint to write (default runs/<model>.pt)")

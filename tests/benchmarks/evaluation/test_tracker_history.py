@@ -19,16 +19,20 @@ from synthetic import moving_square_file  # noqa: E402
 SEGMENTS = 8
 LIGHT = {"finetune_iters": 2, "n_candidates": 16, "energy_every": 0}  # SCTN-like trackers, kept quick
 TRACKERS = {"mil": {}, "csrt": {}, "kcf": {}, "rct": {}, "siamfc": {}, "sctn": {**LIGHT, "finetune_search_iters": 0},
-            "sctn_ann": LIGHT}
+            "sctn_ann": LIGHT, "goturn": {}, "siamrpn": {}, "siammask": {}}
+UNTRAINED = {"goturn": "benchmarks.trackers.goturn.model:GOTURN",
+             "siamrpn": "benchmarks.trackers.siamrpn.model:SiamRPN",
+             "siammask": "benchmarks.trackers.siammask.model:SiamMask"}  # they ship no checkpoint
 
 
-def run_in_order(order: list[str], path: str) -> list[tuple[str, np.ndarray, str | None]]:
-    """(tracker, predicted boxes, error) of each tracker of `order` run in turn on `path` in this process."""
+def run_in_order(order: list[str], path: str, options: dict | None = None) -> list[tuple[str, np.ndarray, str | None]]:
+    """(tracker, predicted boxes, error) of each tracker of `order` run in turn on `path` in this process (options
+    beside TRACKERS': the untrained checkpoints)."""
     from benchmarks.evaluation.runner import run_one
 
     out = []
     for name in order:
-        r = run_one(name, path, max_segments=SEGMENTS, options=TRACKERS[name])
+        r = run_one(name, path, max_segments=SEGMENTS, options={**TRACKERS[name], **(options or {}).get(name, {})})
         out.append((name, r.predictions, r.error))
     return out
 
@@ -45,14 +49,30 @@ def test_every_built_in_tracker_is_checked():
     assert sorted(TRACKERS) == sorted(BUILTIN)
 
 
-@pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"]],
-                         ids=["opencv-rct", "torch"])
-def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, names):
+@pytest.fixture(scope="module")
+def untrained(tmp_path_factory) -> dict:
+    """{tracker: {"checkpoint": path}} of an untrained network (seeded) for each tracker of UNTRAINED."""
+    import torch
+
+    from benchmarks.training.registry import resolve
+    from sctn.checkpoint import save_checkpoint
+
+    d = tmp_path_factory.mktemp("untrained")
+    out = {}
+    for name, net in UNTRAINED.items():
+        torch.manual_seed(0)
+        out[name] = {"checkpoint": str(save_checkpoint(d / f"{name}.pt", resolve(net)(), {}, kind=name))}
+    return out
+
+
+@pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"],
+                                   ["goturn", "siamrpn", "siammask"]], ids=["opencv-rct", "torch", "trained-here"])
+def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, untrained, names):
     with ExitStack() as stack:
         spawn = get_context("spawn")
         pools = [stack.enter_context(ProcessPoolExecutor(1, mp_context=spawn)) for _ in range(len(names) + 1)]
-        shared = pools[0].submit(run_in_order, names + names[::-1], sequence)  # each twice, after all the others
-        alone = {n: p.submit(run_in_order, [n], sequence) for n, p in zip(names, pools[1:])}  # a fresh worker each
+        shared = pools[0].submit(run_in_order, names + names[::-1], sequence, untrained)  # each twice, after all others
+        alone = {n: p.submit(run_in_order, [n], sequence, untrained) for n, p in zip(names, pools[1:])}  # fresh each
         runs = shared.result(timeout=600)
         first = {n: f.result(timeout=600)[0] for n, f in alone.items()}
     for name, boxes, error in runs:

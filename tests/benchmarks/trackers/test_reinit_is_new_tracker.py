@@ -21,6 +21,25 @@ torch.set_num_threads(1)
 OPTIONS = {"sctn": {"n_candidates": 12, "finetune_iters": 2, "energy_every": 0},
            "sctn_ann": {"n_candidates": 12, "finetune_iters": 2, "energy_every": 0}}
 REINIT_AT = 4
+# trackers that ship no checkpoint: run on an untrained network of theirs (what is checked needs no training)
+UNTRAINED = {"goturn": "benchmarks.trackers.goturn.model:GOTURN",
+             "siamrpn": "benchmarks.trackers.siamrpn.model:SiamRPN",
+             "siammask": "benchmarks.trackers.siammask.model:SiamMask"}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def untrained_checkpoints(tmp_path_factory):
+    """A checkpoint of an untrained network (seeded) for each tracker of UNTRAINED, in OPTIONS."""
+    from benchmarks.training.registry import resolve
+    from sctn.checkpoint import save_checkpoint
+
+    d = tmp_path_factory.mktemp("untrained")
+    for name, net in UNTRAINED.items():
+        torch.manual_seed(0)
+        OPTIONS[name] = {"checkpoint": str(save_checkpoint(d / f"{name}.pt", resolve(net)(), {}, kind=name))}
+    yield
+    for name in UNTRAINED:
+        OPTIONS.pop(name, None)
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,73 @@
+"""The training loop shared by the Siamese-family trackers trained here (SiamRPN, SiamMask, GOTURN) on frame pairs.
+
+Data as SiamFC's training (benchmarks/trackers/siamfc/train.py): the usable segments of the training files (ground
+truth of at least `min_box_px` a side), every 10th held out for validation unless validation files are given (then
+those are the validation sequences and every usable training segment trains). A training item is one search
+segment; its partner (the template segment) is drawn by the model's trainer. The model's own `batch`, `loss` and
+`evaluate` make a step; sctn.training.loop.fit runs the steps, validation and the time budget.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+
+from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
+
+
+def split_items(lengths: Sequence[int], n_train: int, has_val_files: bool) -> tuple[list, list, list]:
+    """(training items, validation items, template pools): items are (sequence, frame) pairs; sequences from
+    n_train on are validation sequences; a pool holds the frames a sequence's templates may come from."""
+    train_items, val_items, pools = [], [], []
+    for s, n in enumerate(lengths):
+        everything = np.arange(n)
+        if s >= n_train:
+            pools.append(everything)
+            val_items += [(s, int(k)) for k in everything]
+            continue
+        fit_ks, val_ks = (everything, everything[:0]) if has_val_files else held_out(everything)
+        pools.append(fit_ks)
+        val_items += [(s, int(k)) for k in val_ks]
+        train_items += [(s, int(k)) for k in fit_ks]
+    return train_items, val_items, pools
+
+
+def train_pairs(name: str, model: torch.nn.Module, seqs: list, n_train: int, val_files: list[Path] | None,
+                cfg: TrainBudget, batch: Callable[[list, np.random.Generator], tuple],
+                loss: Callable[[torch.nn.Module, tuple], torch.Tensor],
+                evaluate: Callable[[torch.nn.Module, tuple], dict],
+                report: Callable[[dict], str], progress: bool = True,
+                val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[torch.nn.Module, dict]:
+    """Train `model` with Adam on items of `seqs` (objects with a `segments` array); `batch(items, rng)` makes a
+    step's tensors from (sequence, frame) items, `loss(model, batch)` its loss, `evaluate(model, batch)` the
+    validation figures (a dict with "loss") on a fixed validation batch. Returns the model and its history."""
+    rng = np.random.default_rng(cfg.seed)
+    train_items, val_items, _ = split_items([len(s.segments) for s in seqs], n_train, bool(val_files))
+    if not train_items:
+        raise ValueError("no training segments with a ground-truth box")
+    cfg.check_steps(len(train_items))
+    if val_files and not val_items:
+        raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    val_pick = spread(val_items, cfg.val_segments)
+    val_batch = batch(val_pick, np.random.default_rng(cfg.seed + 1)) if val_pick else None
+
+    def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
+        return loss(model, batch(picks, rng)), {}
+
+    history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
+    validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
+    history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
+                  lambda m: report(m) + score_note(m), history, progress, f"train {name}")
+    if val_batch is not None:
+        validate.score_last()
+    history.update(train_segments=len(train_items), val_segments=len(val_pick))
+    return model, history
+
+
+def pools_of(seqs: list, n_train: int, has_val_files: bool) -> list[np.ndarray]:
+    """The template pools of split_items (frames a sequence's templates may come from)."""
+    return split_items([len(s.segments) for s in seqs], n_train, has_val_files)[2]
