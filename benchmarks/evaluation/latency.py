@@ -23,11 +23,13 @@ KINDS = ("measured", "scaled", "declared")
 # seconds per operation. cpu: one operation per ns (a single core's order of magnitude); loihi: a neuromorphic
 # core after Davies et al. 2018 (IEEE Micro 38(1), "Loihi", Table 1: a synaptic spike operation in ~3.5 ns, a
 # neuron update in ~5 ns), all of a call's operations on one core in series: an assumption, not a measurement
-# (docs/benchmarks.md). A profile without a time for an operation (None) cannot run a tracker that counts it.
+# (docs/benchmarks.md). An operation a profile has no time for (None) runs on its HOST's profile: a neuromorphic
+# chip's dense arithmetic (an ANN's MACs, fine-tuning's backward pass) is done by the computer it is attached to.
 PROFILES: dict[str, dict[str, float | None]] = {
     "cpu": {"ac_ops": 1e-9, "mac_ops": 1e-9, "state_updates": 1e-9, "activations": 1e-9},
     "loihi": {"ac_ops": 3.5e-9, "mac_ops": None, "state_updates": 5e-9, "activations": None},
 }
+HOST = {"loihi": "cpu"}
 
 
 @dataclass(frozen=True)
@@ -65,15 +67,20 @@ class LatencyModel:
 
 def declared_seconds(counts: dict, profile: str) -> float:
     """Seconds of a call's operations (counts: {operation: number}) on a hardware profile of PROFILES."""
-    times = PROFILES[profile]
+    times = _times(profile)
     total = 0.0
     for op in sorted(times):
         n = float(counts.get(op, 0.0) or 0.0)
-        if n and times[op] is None:
-            raise RuntimeError(f"hardware profile {profile} has no time for {op} ({n:g} counted)")
         if n:
             total += n * times[op]
     return total
+
+
+def _times(profile: str) -> dict[str, float]:
+    """Seconds per operation of a profile, the operations it has no time for taken from its host's."""
+    own = PROFILES[profile]
+    host = _times(HOST[profile]) if profile in HOST else {}
+    return {op: t if t is not None else host[op] for op, t in own.items() if t is not None or op in host}
 
 
 def free_model() -> LatencyModel:
@@ -111,7 +118,7 @@ def check_declared(models: list[LatencyModel], trackers: dict[str, type], flag: 
     for m in models:
         if m.kind != "declared":
             continue
-        timed = {op for op, t in PROFILES[m.profile].items() if t is not None}
+        timed = set(_times(m.profile))
         for name, cls in trackers.items():
             ops = set(getattr(cls, "operations", ()))
             if not ops & timed:

@@ -53,14 +53,14 @@ def square(tmp_path_factory):
 
 
 def expected(latency_us, predictive=False, end_us=120_000, step_us=1000):
-    """Closed form: calls at 10 ms + k L (k >= 1), answer k available at its call + L; each 1 ms query after 10 ms
-    scores the latest available answer (the given box until the first answer)."""
-    calls = 10_000 + latency_us * np.arange(1, 1000)
+    """Closed form: the init at 10 ms, calls at 11 ms + k L (k >= 0: the init's latency is not charged), answer k
+    available at its call + L; each 1 ms query after 10 ms scores the latest available answer (the given box until
+    the first answer)."""
+    calls = 11_000 + latency_us * np.arange(0, 1000)
     calls = calls[calls <= end_us]
+    # predictive: the velocity of two exact answers (the given box first) moves each exactly to its arrival
     describes = np.concatenate([[10_000], calls + (latency_us if predictive else 0)])
     avail = np.concatenate([[10_000], calls + latency_us])
-    if predictive:
-        describes[1] = calls[0] + latency_us * 1.0  # velocity from the given box and the first answer: exact too
     q = np.arange(11_000, end_us + 1, step_us)
     k = np.searchsorted(avail, q, side="right") - 1
     return square_iou(V[None, :] * (q - describes[k])[:, None] / 1e6)
@@ -73,10 +73,10 @@ def test_declared_latency_gives_the_closed_form_scores(square):
     np.testing.assert_array_equal(run.query_us, np.arange(11_000, 120_001, 1000))
     np.testing.assert_allclose(run.iou, expected(5000), atol=1e-6)
     np.testing.assert_allclose(run.predictive_iou, expected(5000, predictive=True), atol=1e-6)
-    arriving = (run.query_us >= 20_000) & (run.query_us % 5000 == 0)  # an answer arrives at these queries
+    arriving = (run.query_us >= 16_000) & (run.query_us % 5000 == 1000)  # an answer arrives at these queries
     assert np.all(run.predictive_iou[arriving] > 0.9999) and np.all(run.iou[arriving] < 0.99)  # exact when it lands
-    # windows: the last 10 ms ending at each call, calls 5 ms apart from 15 ms
-    assert [w[:2] for w in tracker.windows[:3]] == [(5_000, 15_000), (10_000, 20_000), (15_000, 25_000)]
+    # windows: the last 10 ms ending at each call, calls 5 ms apart from 11 ms
+    assert [w[:2] for w in tracker.windows[:3]] == [(1_000, 11_000), (6_000, 16_000), (11_000, 21_000)]
     assert run.latency_s[1:].tolist() == pytest.approx([0.005] * (len(run.latency_s) - 1))
     s = stream_scores(run.iou, run.centre_error)
     assert s["A"] == pytest.approx(expected(5000).mean()) and s["queries"] == 110
@@ -89,7 +89,7 @@ def test_since_window_takes_everything_after_the_last_call_and_unaligned_windows
         n_events = ds.num_events
     t0s = [w[0] for w in tracker.windows]
     t1s = [w[1] for w in tracker.windows]
-    assert t0s[0] == 10_000 and t1s[0] == 13_700  # free 3.7 ms after the init at 10 ms
+    assert t0s[0] == 10_000 and t1s[0] == 11_000 and t1s[1] == 14_700  # 1 ms after the init, then 3.7 ms later
     assert t0s[1:] == t1s[:-1]  # each call takes what arrived since the previous one, not aligned to 10 ms
     assert sum(w[2] for w in tracker.windows) < n_events
 
