@@ -22,14 +22,16 @@ KINDS = ("measured", "scaled", "declared")
 
 # seconds per operation. cpu: one operation per ns (a single core's order of magnitude); loihi: a neuromorphic
 # core after Davies et al. 2018 (IEEE Micro 38(1), "Loihi", Table 1: a synaptic spike operation in ~3.5 ns, a
-# neuron update in ~5 ns), all of a call's operations on one core in series: an assumption, not a measurement
-# (docs/benchmarks.md). An operation a profile has no time for (None) runs on its HOST's profile: a neuromorphic
-# chip's dense arithmetic (an ANN's MACs, fine-tuning's backward pass) is done by the computer it is attached to.
+# neuron update in ~5 ns) and its 128 cores sharing a call's operations evenly (LANES): assumptions, not
+# measurements (docs/benchmarks.md). An operation a profile has no time for (None) runs on its HOST's profile: a
+# neuromorphic chip's dense arithmetic (an ANN's MACs, fine-tuning's backward pass) is done by the computer it is
+# attached to.
 PROFILES: dict[str, dict[str, float | None]] = {
     "cpu": {"ac_ops": 1e-9, "mac_ops": 1e-9, "state_updates": 1e-9, "activations": 1e-9},
     "loihi": {"ac_ops": 3.5e-9, "mac_ops": None, "state_updates": 5e-9, "activations": None},
 }
 HOST = {"loihi": "cpu"}
+LANES = {"cpu": 1, "loihi": 128}  # operations done at once: a profile's own operations are divided among them
 
 
 @dataclass(frozen=True)
@@ -67,12 +69,17 @@ class LatencyModel:
 
 def declared_seconds(counts: dict, profile: str) -> float:
     """Seconds of a call's operations (counts: {operation: number}) on a hardware profile of PROFILES."""
-    times = _times(profile)
     total = 0.0
-    for op in sorted(times):
-        n = float(counts.get(op, 0.0) or 0.0)
-        if n:
-            total += n * times[op]
+    for name in (profile, HOST.get(profile)):
+        if name is None:
+            continue
+        own = 0.0
+        for op in sorted(PROFILES[name]):
+            n = float(counts.get(op, 0.0) or 0.0)
+            t = PROFILES[name][op]
+            if n and t is not None and (name == profile or PROFILES[profile].get(op) is None):
+                own += n * t
+        total += own / LANES[name]
     return total
 
 

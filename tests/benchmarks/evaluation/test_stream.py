@@ -132,3 +132,12 @@ def test_a_tracker_without_operations_is_refused_for_a_declared_model():
     with pytest.raises(UserError, match="tracker 'plain' has no latency under it"):
         check_declared(models, {"plain": Tracker})
     assert [m.name for m in parse_latency("scaled:0.5,2")] == ["scaled:0.5", "scaled:2"]
+
+
+def test_declared_seconds_of_each_profile():
+    from benchmarks.evaluation.latency import declared_seconds
+
+    counts = {"ac_ops": 1e6, "state_updates": 1e5, "mac_ops": 2e6, "activations": 0.0}
+    assert declared_seconds(counts, "cpu") == pytest.approx(1e6 * 1e-9 + 1e5 * 1e-9 + 2e6 * 1e-9)
+    # loihi: synaptic ops and updates shared by 128 cores, the MACs on the cpu host
+    assert declared_seconds(counts, "loihi") == pytest.approx((1e6 * 3.5e-9 + 1e5 * 5e-9) / 128 + 2e6 * 1e-9)
