@@ -179,7 +179,9 @@ def check_stream(protocol: str, stream: Mapping | None, trackers: list[str], vid
     from benchmarks.trackers import tracker_class
     from dvsot.core.errors import UserError
 
-    given = {k: v for k, v in (stream or {}).items() if v not in (None, [], (), False)}
+    # a setting left at its default is None, False or empty (0 is a value: a query rate to refuse)
+    given = {k: v for k, v in (stream or {}).items()
+             if v is not None and v is not False and not (isinstance(v, (list, tuple)) and not v)}
     if protocol != "stream":
         if given:
             key = next(iter(given))

@@ -105,7 +105,8 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) there (dvsot.runtime.dask_tasks;
     the files must be at the same paths on the workers). Unknown trackers, jobs < 1, max_segments < 1, an
     unknown protocol or a malformed scheduler raise UserError before anything runs; a tracker that crashes
-    on a sequence gives that result an `error` instead of raising.
+    on a sequence gives that result an `error` instead of raising. stream: protocol "stream"'s settings
+    {latency: [specs], query_hz, window} (its results are StreamSequence).
     """
     from tqdm import tqdm
 

@@ -9,7 +9,9 @@ Segments that count: see benchmarks/evaluation/protocol.py (initialisation segme
 ground truth never count; a failure, IoU < 0.5, re-initialises on the next segment). --protocol ope
 runs one pass without re-initialisation instead and reports success AUC and precision at 20 px
 (benchmarks/evaluation/ope.py). Either way <out>/<tracker>/ gets per-sequence boxes, times and (re-initialising
-protocol) VOT trajectories (benchmarks/analysis/sequence_files.py).
+protocol) VOT trajectories (benchmarks/analysis/sequence_files.py). --protocol stream scores each tracker on
+the stream as it arrives, its answers late by its latency (--latency, --query-hz, --stream-window, --predictive;
+benchmarks/evaluation/stream.py, docs/benchmarks.md).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.

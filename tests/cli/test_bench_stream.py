@@ -49,6 +49,8 @@ def test_rct_streams_end_to_end(square, tmp_path, capsys):
     (["--latency", "declared:tpu"], "--latency declared:tpu: unknown hardware profile 'tpu'"),
     (["--latency", "declared:cpu"], "--latency declared:cpu: tracker 'rct' has no latency under it"),
     (["--query-hz", "0.5"], "--query-hz 0.5: outside 1..1e+06 Hz"),
+    (["--query-hz", "0"], "--query-hz 0: outside"),
+    (["--latency", "scaled:1,-2"], "--latency scaled:1,-2: scale factor '-2'"),
     (["--query-hz", "2e6"], "--query-hz 2e+06: outside"),
     (["--video", "sq"], "--video sq: not made by --protocol stream"),
 ])
