@@ -67,3 +67,18 @@ def test_stream_flags_without_the_stream_protocol_are_refused(square, tmp_path, 
     assert main(["bench", "--tracker", "rct", "--data", str(square), "--predictive", "--out", str(tmp_path / "r"),
                  "--quiet"]) == 2
     assert "--predictive: only with --protocol stream" in capsys.readouterr().err
+
+
+def test_declared_runs_are_bit_identical_across_reruns_and_jobs(square, tmp_path, capsys):
+    second = moving_square_file(tmp_path / "sq2.h5", width=96, height=72, size=20, duration_ms=60,
+                                velocity_px_s=(0.0, 150.0), split="test")
+    outs = []
+    for k, jobs in enumerate(["1", "2"]):  # a rerun, in worker processes
+        out = tmp_path / f"run{k}"
+        assert main(["bench", "--tracker", "siamfc", "--data", str(square), str(second), "--protocol", "stream",
+                     "--latency", "declared:cpu", "--latency", "declared:loihi", "--no-energy", "--jobs", jobs,
+                     "--out", str(out), "--quiet"]) == 0
+        files = sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file() and p.name != "run.json")
+        outs.append({p: (out / p).read_bytes() for p in files})
+    assert outs[0] == outs[1]
+    assert any(str(p).endswith("sq2.declared-loihi.csv") for p in outs[0])
