@@ -33,6 +33,7 @@ from __future__ import annotations
 import time
 import traceback
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -52,11 +53,12 @@ MIN_BOX_PX = 1.0
 
 @dataclass
 class StreamRun:
-    """One tracker's calls on one sequence under one latency model, and its answers scored at the queries.
+    """One tracker's calls on one sequence under one latency model (its name), and its answers scored at the queries.
 
-    calls: (C, 6) float64 rows t0_us, t1_us (the window), latency_s, available_us, and the call's kind (0 init,
-    1 update) then x y w h in `boxes` (C, 4); queries t_us (Q,), iou (Q,) and centre error (Q,) of the plain
-    answers, NaN where a query does not count; predictive_* the same for the extrapolated answers.
+    Per call, the initialisation first: window (C, 2) t0_us, t1_us (the instant the answer describes), latency_s
+    (C,), available_us (C,), boxes and predicted (the extrapolated answers) (C, 4) xywh pixels. Per query:
+    query_us (Q,), iou and centre_error of the plain answers (NaN where a query does not count), predictive_iou
+    and predictive_centre_error of the extrapolated ones.
     """
 
     latency: str
@@ -149,9 +151,9 @@ def extrapolate(boxes: np.ndarray, times_us: np.ndarray, latency_s: np.ndarray) 
 
 
 def latest_available(available_us: np.ndarray, query_us: np.ndarray) -> np.ndarray:
-    """Per query, the index of the latest answer available at or before it (-1: none yet); answers are in call
-    order, and a later call's answer is never older, so the latest available is the last with available <= q."""
-    # availability need not be monotone (a fast call after a slow one): take the running latest call available
+    """Per query (us), the index of the latest call whose answer is available at or before it (-1: none yet);
+    answers are in call order, and a call's answer describes a later instant than any earlier call's."""
+    # availability need not be monotone (a fast call after a slow one): the running latest call among those out
     order = np.argsort(available_us, kind="stable")
     best = np.maximum.accumulate(order)  # among answers available by then, the one of the latest call
     pos = np.searchsorted(available_us[order], query_us, side="right") - 1
@@ -172,9 +174,8 @@ def score_queries(boxes: np.ndarray, available_us: np.ndarray, query_us: np.ndar
     return np.where(usable, iou, np.nan), np.where(usable, err, np.nan)
 
 
-def run_stream(tracker: Tracker, dataset: Dataset, model: LatencyModel, name: str | None = None,
-               query_hz: float = DEFAULT_QUERY_HZ, window: str = "last", max_segments: int | None = None,
-               min_box_px: float = MIN_BOX_PX) -> StreamRun:
+def run_stream(tracker: Tracker, dataset: Dataset, model: LatencyModel, query_hz: float = DEFAULT_QUERY_HZ,
+               window: str = "last", max_segments: int | None = None, min_box_px: float = MIN_BOX_PX) -> StreamRun:
     """One tracker on one sequence under one latency model; errors raise (run_sequences records them)."""
     if window not in WINDOWS:
         raise UserError(f"stream window must be one of {', '.join(WINDOWS)}, got {window!r}")
@@ -198,7 +199,7 @@ def run_stream(tracker: Tracker, dataset: Dataset, model: LatencyModel, name: st
     return StreamRun(model.name, windows, latency, available, boxes, predicted, queries, iou, err, p_iou, p_err)
 
 
-def run_sequences(tracker_factory, dataset: Dataset, models: list[LatencyModel], name: str,
+def run_sequences(tracker_factory: Callable[[], Tracker], dataset: Dataset, models: list[LatencyModel], name: str,
                   query_hz: float = DEFAULT_QUERY_HZ, window: str = "last",
                   max_segments: int | None = None) -> StreamSequence:
     """Every latency model's run of a fresh tracker on one sequence, the latency-free reference first; a crash is
@@ -210,7 +211,7 @@ def run_sequences(tracker_factory, dataset: Dataset, models: list[LatencyModel],
         out.machine = machine()
     try:
         for model in [free_model(), *models]:
-            out.runs[model.name] = run_stream(tracker_factory(), dataset, model, name, query_hz, window, max_segments)
+            out.runs[model.name] = run_stream(tracker_factory(), dataset, model, query_hz, window, max_segments)
     except UserError:
         raise
     except Exception as exc:  # a crashing tracker fails this sequence only

@@ -141,3 +141,28 @@ def test_declared_seconds_of_each_profile():
     assert declared_seconds(counts, "cpu") == pytest.approx(1e6 * 1e-9 + 1e5 * 1e-9 + 2e6 * 1e-9)
     # loihi: synaptic ops and updates shared by 128 cores, the MACs on the cpu host
     assert declared_seconds(counts, "loihi") == pytest.approx((1e6 * 3.5e-9 + 1e5 * 5e-9) / 128 + 2e6 * 1e-9)
+
+
+def test_half_factor_is_interpolated_between_the_bracketing_factors():
+    from benchmarks.evaluation.stream_summary import half_factor
+
+    h = half_factor([(1.0, 0.8), (2.0, 0.6), (4.0, 0.2)], 0.8)
+    assert h["reached"] and h["factor"] == pytest.approx(2.0 + 2.0 * (0.6 - 0.4) / (0.6 - 0.2))
+    assert half_factor([(1.0, 0.8), (8.0, 0.5)], 0.8) == {"factor": None, "reached": False, "half_score": 0.4}
+    assert half_factor([(0.5, 0.3)], 0.8)["at_or_below"]
+
+
+def test_summary_pools_sequences_and_gives_the_drop_from_the_latency_free_run(square):
+    from benchmarks.evaluation.stream_summary import summarise_stream
+
+    with Dataset(square) as ds:
+        seq = run_sequences(lambda: Oracle(0.02, 0.02), ds, [LatencyModel("declared", profile="cpu")], "oracle")
+    summary = summarise_stream([seq], predictive=True)
+    rows = summary["rows"]
+    assert set(rows) == {"oracle", "oracle (predictive)"}
+    free, late = rows["oracle"]["free"]["all"], rows["oracle"]["declared:cpu"]["all"]
+    assert late["latency"]["p50_s"] == pytest.approx(0.02) and late["latency"]["calls"] == len(seq.runs["declared:cpu"]
+                                                                                               .latency_s) - 1
+    assert summary["drop"]["oracle"]["declared:cpu"]["ARscore"] == pytest.approx(free["ARscore"] - late["ARscore"])
+    assert late["ARscore"] < free["ARscore"]  # 20 ms late on a moving target costs accuracy
+    assert rows["oracle (predictive)"]["declared:cpu"]["all"]["A"] > late["A"]  # extrapolation recovers some
