@@ -87,7 +87,8 @@ class StreamSequence:
 
 def _window(dataset: Dataset, index: int, t0_us: int, t1_us: int) -> Segment:
     """The events of [t0_us, t1_us) as a Segment; its box is NaN: a streaming call is never shown ground truth."""
-    return Segment(index, int(t0_us), int(t1_us), dataset.events(int(t0_us), int(t1_us)), np.full(4, np.nan, np.float32))
+    events = dataset.events(int(t0_us), int(t1_us))
+    return Segment(index, int(t0_us), int(t1_us), events, np.full(4, np.nan, np.float32))
 
 
 def _first_box(dataset: Dataset, n_segments: int, min_box_px: float) -> tuple[int, np.ndarray] | None:

@@ -32,7 +32,8 @@ def test_interpolated_boxes_are_within_the_bound_of_boxes_rendered_there(tmp_pat
     rendered = np.isin(second.t, middles)
     truth = truth_at(first, second.t[rendered])
     edge, side = interpolation_bound_px(0.75)
-    for interpolated, exact in ((truth.xywh, second.xywh[rendered]), (truth.xywh_visible, second.xywh_visible[rendered])):
+    pairs = ((truth.xywh, second.xywh[rendered]), (truth.xywh_visible, second.xywh_visible[rendered]))
+    for interpolated, exact in pairs:
         ok = np.isfinite(exact).all(axis=1)
         assert ok.sum() >= 3
         err = np.abs(interpolated[ok] - exact[ok])
