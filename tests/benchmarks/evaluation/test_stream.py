@@ -166,3 +166,23 @@ def test_summary_pools_sequences_and_gives_the_drop_from_the_latency_free_run(sq
     assert summary["drop"]["oracle"]["declared:cpu"]["ARscore"] == pytest.approx(free["ARscore"] - late["ARscore"])
     assert late["ARscore"] < free["ARscore"]  # 20 ms late on a moving target costs accuracy
     assert rows["oracle (predictive)"]["declared:cpu"]["all"]["A"] > late["A"]  # extrapolation recovers some
+
+
+def test_a_recording_is_queried_at_its_annotations_only(tmp_path):
+    from dvsot.dataset import DatasetWriter
+    from dvsot.events import EventBatch
+
+    n = 12  # segments of 10 ms; annotations every 20 ms (a recording is never interpolated)
+    path = tmp_path / "rec.h5"
+    with DatasetWriter(path, 160, 120, 10_000, {"name": "rec", "split": "test"}, annotated=True) as w:
+        t = np.arange(n * 10) * 1000 + 500
+        w.append_events(EventBatch(np.full(t.size, 50, np.uint16), np.full(t.size, 50, np.uint16), t,
+                                   np.ones(t.size, np.uint8)))
+        ann = np.arange(0, n * 10_000, 20_000) + 10_000
+        w.append_boxes(ann, np.stack([true_box(a) for a in ann]).astype(np.float32))
+        w.close(n * 10_000)
+    with Dataset(path) as ds:
+        run = run_stream(Oracle(0.004, 0.004), ds, LatencyModel("declared", profile="cpu"))
+        annotations = ds.boxes().t
+    assert set(run.query_us) <= set(annotations) and len(run.query_us) >= 3
+    assert np.isfinite(run.iou).all()
