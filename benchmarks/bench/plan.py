@@ -42,6 +42,7 @@ class Plan:
     scheduler: str | None = None
     videos: list[str] = field(default_factory=list)
     skip_absent: bool = False  # protocol rule 6: hidden-target segments left unscored rather than scored apart
+    stream: dict | None = None  # protocol "stream": latency specs, query_hz, window, predictive (check_stream)
 
 
 def _options(specs: list[str], trackers: list[str], labels: Mapping[str, str] | None = None) -> dict[str, dict]:
@@ -152,21 +153,29 @@ _WHO_ASKS = {"tables": ("out_dir", ""), "manifest": ("out_dir", " (the run's man
 
 
 def _output_names(protocol: str, plots: bool, videos: Sequence[str], energy: bool,
-                  labels: Mapping[str, str] | None = None) -> dict[str, str]:
+                  labels: Mapping[str, str] | None = None, scale_plot: bool = False) -> dict[str, str]:
     """{file name in out_dir: the setting that asks for it}."""
     from benchmarks.analysis.report import report_files
 
-    names = report_files(protocol, plots, list(videos), energy)
+    names = report_files(protocol, plots, list(videos), energy, scale_plot)
     return {name: label(_WHO_ASKS[kind][0], labels) + _WHO_ASKS[kind][1] for name, kind in names.items()}
 
 
 def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str = "ar", plots: bool = False,
-              videos: Sequence[str] = (), energy: bool = True) -> list[str]:
+              videos: Sequence[str] = (), energy: bool = True, stream: dict | None = None) -> list[str]:
     """Every path (relative to out_dir) a run of these trackers on these sequences may write: the report's files
     (the energy table's only when a tracker of CHECKPOINT_TRACKERS runs) and the per-sequence files."""
     from benchmarks.analysis.sequence_files import per_sequence_files
 
     energy = energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
+    if protocol == "stream":
+        from benchmarks.analysis.stream_tables import stream_files
+
+        from benchmarks.bench.stream_options import stream_models
+
+        models = stream_models(stream or {})
+        return [*_output_names(protocol, plots, videos, energy, scale_plot=any(m.kind == "scaled" for m in models)),
+                *(str(p) for p in stream_files(list(trackers), list(sequences), [m.name for m in models]))]
     return [*_output_names(protocol, plots, videos, energy),
             *(str(p) for p in per_sequence_files(list(trackers), sequences, protocol))]
 
@@ -200,8 +209,11 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
                    tracker_modules: Sequence[str] = (), max_segments: int | None = None, plots: bool = False,
                    videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
                    options: Sequence[str] = (), protocol: str = "ar", labels: Mapping[str, str] | None = None,
-                   skip_absent: bool = False) -> Plan:
+                   skip_absent: bool = False,
+                   stream: Mapping | None = None) -> Plan:
     """Check every input and output of a run; UserError (and nothing done) on the first problem.
+
+    stream: protocol "stream"'s settings {latency: [specs], query_hz, window, predictive} (check_stream).
 
     options are TRACKER.KEY=VALUE strings; messages name the settings by these parameters' names, or as
     `labels` ({name: flag}) says.
@@ -234,6 +246,9 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     for name in trackers:
         tracker_class(name)
     options = _options(option_specs, trackers, labels)
+    from benchmarks.bench.stream_options import check_stream, stream_models
+
+    stream = check_stream(protocol, stream, trackers, videos, labels)
     sctn = "sctn" in trackers
     energy = not no_energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
     if checkpoint is not None:
@@ -255,7 +270,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     from benchmarks.evaluation.protocol import nothing_to_score
 
     for f in files:  # else its row would be empty, at exit 0
-        problem = nothing_to_score(f, max_segments, reinitialise=protocol == "ar")
+        problem = nothing_to_score(f, max_segments, reinitialise=protocol == "ar")  # stream: one pass, as ope
         if problem:
             raise UserError(problem)
     check_frame_sizes(trackers, files)
@@ -271,11 +286,12 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
         if seq not in sequences:
             raise UserError(f"{video_label} {seq}: no such sequence in this run (sequences: {', '.join(sequences)})")
         check_video(seq, sequences[seq], labels)
-    check_outputs(out_dir, _output_names(protocol, plots, videos, energy, labels), files, labels)
+    scale_plot = stream is not None and any(m.kind == "scaled" for m in stream_models(stream))
+    check_outputs(out_dir, _output_names(protocol, plots, videos, energy, labels, scale_plot), files, labels)
     for name in trackers:  # <out_dir>/<tracker>/ holds the per-sequence files
         output_dir(out_dir / file_stem(name), f"{out_label} (per-sequence results)")
     # every path under out_dir, checked now; out_dir holds this run's files only (benchmarks.analysis.report)
-    run_dir(out_dir, out_label, run_files(trackers, sequences, protocol, plots, videos, energy))
+    run_dir(out_dir, out_label, run_files(trackers, sequences, protocol, plots, videos, energy, stream))
     model = load_sctn_checkpoint(options.get("sctn", {}).get("checkpoint")) if sctn else None
     check_trackers(trackers, options, option_specs, labels)
     if energy and model is None:  # the energy table's SCTN rows without sctn in the run: the shipped checkpoint
@@ -284,7 +300,7 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     tasks = [(t, str(f)) for t in trackers for f in files]
     jobs = jobs or min(2, os.cpu_count() or 1, len(tasks))
     return Plan(trackers, files, sequences, options, out_dir, jobs, model, ann_models, notes, tasks, max_segments,
-                protocol, list(tracker_modules), scheduler, list(videos), skip_absent)
+                protocol, list(tracker_modules), scheduler, list(videos), skip_absent, stream)
 
 
 def track(p: Plan, progress: bool = True) -> list:
@@ -292,7 +308,8 @@ def track(p: Plan, progress: bool = True) -> list:
     from benchmarks.evaluation.runner import benchmark
 
     return benchmark(p.trackers, p.files, p.options, p.jobs, p.max_segments, p.protocol, p.tracker_modules,
-                     progress=progress, scheduler=p.scheduler, skip_absent=p.skip_absent)
+                     progress=progress, scheduler=p.scheduler, skip_absent=p.skip_absent,
+                     stream=p.stream)
 
 
 @dataclass
@@ -318,6 +335,15 @@ def tables_text(run: BenchmarkRun) -> str:
     from benchmarks.evaluation.attributes import attribute_ope, attribute_scores
 
     protocol = run.plan.protocol
+    if protocol == "stream":
+        from benchmarks.analysis.stream_tables import format_stream
+
+        parts = [format_stream(run.summary)]
+        if run.energy is not None:
+            from benchmarks.analysis.energy_table import format_energy_table
+
+            parts.append(format_energy_table(run.energy))
+        return "\n".join(parts)
     if protocol == "ope":
         from benchmarks.analysis.ope_tables import format_ope
 
@@ -339,7 +365,8 @@ def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, sp
                   videos: Sequence[str] = (), checkpoint: str | None = None, energy: bool = True,
                   options: Sequence[str] = (), protocol: str = "ar", progress: bool = True,
                   show: Callable[[BenchmarkRun], None] | None = None,
-                  labels: Mapping[str, str] | None = None, skip_absent: bool = False) -> BenchmarkRun:
+                  labels: Mapping[str, str] | None = None, skip_absent: bool = False,
+                  stream: Mapping | None = None) -> BenchmarkRun:
     """Check everything (plan_benchmark), run every tracker on every sequence, make and write the tables.
 
     `show` gets the finished run before any file is written (its `paths` still empty); a tracker that
@@ -350,9 +377,13 @@ def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, sp
     from benchmarks.analysis.tables import summarise
 
     p = plan_benchmark(trackers, data, split, out_dir, jobs, scheduler, tracker_modules, max_segments, plots, videos,
-                       checkpoint, energy, options, protocol, labels, skip_absent)
+                       checkpoint, energy, options, protocol, labels, skip_absent, stream)
     results = track(p, progress)
-    if protocol == "ope":
+    if protocol == "stream":
+        from benchmarks.evaluation.stream_summary import summarise_stream
+
+        summary = summarise_stream(results, p.stream["predictive"], p.stream)
+    elif protocol == "ope":
         from benchmarks.evaluation.ope import summarise_ope
 
         summary = summarise_ope(results)

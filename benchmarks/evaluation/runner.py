@@ -8,13 +8,20 @@ from typing import Iterable, Sequence
 
 from benchmarks.evaluation.protocol import SequenceResult
 
-PROTOCOLS = ("ar", "ope")  # the paper's A / R with re-initialisation; one pass (OTB-style OPE)
+PROTOCOLS = ("ar", "ope", "stream")  # the paper's A / R with re-initialisation; one pass (OTB-style OPE); streaming
+
 
 
 def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_segments: int | None = None,
-            options: dict | None = None, protocol: str = "ar", skip_absent: bool = False) -> SequenceResult:
+            options: dict | None = None, protocol: str = "ar", skip_absent: bool = False,
+            stream: dict | None = None) -> SequenceResult:
     """One tracker on one dataset file; a tracker that fails to build or crashes gives a result with `error` set;
-    skip_absent leaves segments with the target wholly hidden unscored (protocol rule 6) instead of apart."""
+    skip_absent leaves segments with the target wholly hidden unscored (protocol rule 6) instead of apart.
+
+    protocol "stream" gives a benchmarks.evaluation.stream.StreamSequence instead; stream: {latency: [specs],
+    query_hz, window} (benchmarks.evaluation.stream.run_sequences)."""
+    if protocol == "stream":
+        return _run_stream(tracker, path, modules, max_segments, options, stream or {})
     import numpy as np
 
     from benchmarks.evaluation.protocol import run_sequence
@@ -46,6 +53,32 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
         return result
 
 
+def _run_stream(tracker: str, path, modules: Sequence[str], max_segments: int | None, options: dict | None,
+                stream: dict):
+    """One tracker on one file under every latency model of `stream` (run_one's protocol "stream")."""
+    from benchmarks.evaluation.latency import parse_latency
+    from benchmarks.evaluation.stream import DEFAULT_QUERY_HZ, StreamSequence, run_sequences
+    from benchmarks.trackers import get_tracker, load_tracker_module, tracker_class
+    from dvsot.dataset import Dataset
+    from dvsot.core.errors import exception_line
+
+    for m in modules:
+        load_tracker_module(m)
+    models = [m for spec in stream.get("latency", ["measured"]) for m in parse_latency(spec)]
+    opts = dict(options or {})
+    if any(m.kind == "declared" for m in models):  # a declared latency needs every call's operations
+        opts.update(getattr(tracker_class(tracker), "count_every_call", {}))
+    with Dataset(path) as ds:
+        try:
+            get_tracker(tracker, **opts)
+        except Exception as exc:  # a runtime failure: benchmark() built each tracker's class up front
+            return StreamSequence(tracker, ds.name, error=exception_line(exc))
+        if "torch" in sys.modules:  # a torch-based tracker: sequences run in parallel, one thread each
+            sys.modules["torch"].set_num_threads(1)
+        return run_sequences(lambda: get_tracker(tracker, **opts), ds, models, tracker,
+                             stream.get("query_hz", DEFAULT_QUERY_HZ), stream.get("window", "last"), max_segments)
+
+
 def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None = None) -> dict[str, Path]:
     """{sequence name: dataset file} of the files, directories or globs (split None: any); each must hold
     ground truth and a name of its own (they name the tables' columns)."""
@@ -68,14 +101,16 @@ def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None =
 def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dict[str, dict] | None = None,
               jobs: int = 1, max_segments: int | None = None, protocol: str = "ar",
               tracker_modules: Sequence[str] = (), progress: bool = False,
-              scheduler: str | None = None, skip_absent: bool = False) -> list[SequenceResult]:
+              scheduler: str | None = None, skip_absent: bool = False,
+              stream: dict | None = None) -> list[SequenceResult]:
     """Every tracker on every file (tracker by tracker), here (jobs 1) or in `jobs` worker processes (local:N);
     options: {tracker: {key: value}}; skip_absent as run_one takes it.
 
     scheduler: "local:N" or "tcp://HOST:PORT" runs one Dask task per (tracker, file) there (dvsot.runtime.dask_tasks;
     the files must be at the same paths on the workers). Unknown trackers, jobs < 1, max_segments < 1, an
     unknown protocol or a malformed scheduler raise UserError before anything runs; a tracker that crashes
-    on a sequence gives that result an `error` instead of raising.
+    on a sequence gives that result an `error` instead of raising. stream: protocol "stream"'s settings
+    {latency: [specs], query_hz, window} (its results are StreamSequence).
     """
     from tqdm import tqdm
 
@@ -105,12 +140,13 @@ def benchmark(trackers: Iterable[str], files: Iterable[str | Path], options: dic
     if scheduler or jobs > 1:  # one Dask task per run: --jobs N is local:N (dvsot.runtime.dask_tasks)
         from dvsot.runtime.dask_tasks import map_tasks
 
-        calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol, skip_absent) for t, f in tasks]
+        calls = [(t, f, list(tracker_modules), max_segments, options.get(t), protocol, skip_absent, stream)
+                 for t, f in tasks]
         results = map_tasks(scheduler or f"local:{jobs}", run_one, calls, lambda k, r: bar.update(1))
     else:
         for k, (t, f) in enumerate(tasks):
             bar.set_postfix_str(f"{t} on {Path(f).stem}")
-            results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol, skip_absent)
+            results[k] = run_one(t, f, tracker_modules, max_segments, options.get(t), protocol, skip_absent, stream)
             bar.update(1)
     bar.close()
     return results

@@ -13,6 +13,8 @@ class Tracker(ABC):
     """A single-object tracker on 10 ms event segments; boxes are xywh float pixels."""
 
     name: str = "tracker"
+    operations: tuple[str, ...] = ()  # the operations energy_per_segment counts (a declared latency times them)
+    count_every_call: dict = {}  # the options that make it count every call (a declared latency needs each call's)
 
     @abstractmethod
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:

@@ -32,6 +32,8 @@ class SCTNBenchTracker(Tracker):
     """SCTN (Algorithm 1) behind the benchmark interface; options (SCTNOptions) pass to sctn.tracker.SCTNTracker."""
 
     name = "sctn"
+    operations = ("ac_ops", "mac_ops", "state_updates")
+    count_every_call = {"energy_every": 1}
 
     def __init__(self, **options) -> None:
         from sctn.tracker import SCTNTracker
@@ -56,15 +58,21 @@ class SCTNBenchTracker(Tracker):
 
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Start from the ground-truth box: a fresh fine-tuned copy of the trained network (SCTNParams.reinit)."""
-        self.tracker.init(segment.events, segment.t0_us, box_xywh, width, height)
+        self.tracker.init(segment.events, self._t0(segment), box_xywh, width, height)
 
     def update(self, segment: Segment) -> np.ndarray:
         """Score 256 candidates, return the top-3 mean box; every `energy_every` segments mark it for counting."""
-        box = self.tracker.track(segment.events, segment.t0_us)
+        box = self.tracker.track(segment.events, self._t0(segment))
         self._updates += 1
         if self.energy_every and (self._updates - 1) % self.energy_every == 0:  # updates 1, 1 + N, 1 + 2N, ...
             self._due = (segment, box)  # counted in energy_per_segment, outside the protocol's timed update
         return box
+
+    def _t0(self, segment: Segment) -> int:
+        """Where the network's time steps start: the segment's start, or for a longer window (a streaming call's
+        events since its last one) its latest steps x step_us, so that the newest events are the ones encoded."""
+        cfg = self.tracker.model.cfg
+        return max(int(segment.t0_us), int(segment.t1_us) - cfg.steps * cfg.step_us)
 
     def _count(self, segment: Segment, box: np.ndarray) -> dict:
         """Operations of the segment just tracked: the search actually run (fast), or every candidate's own evaluation
@@ -76,7 +84,7 @@ class SCTNBenchTracker(Tracker):
         model, cfg = self.tracker.model, self.tracker.model.cfg
         candidates, ref_box = self.tracker.last_search
         if self.tracker.fast:
-            inputs = encode_search(segment.events, segment.t0_us, candidates, ref_box, cfg)
+            inputs = encode_search(segment.events, self._t0(segment), candidates, ref_box, cfg)
             ops = count_search_ops(model, *inputs, crop=self.tracker.crop)
             n = len(candidates)  # per evaluation: a segment's share per candidate, as the energy table states it
             row = tracker_energy(n, ac_ops=ops["ac_ops"] / n, mac_ops=ops["mac_ops"] / n,
@@ -84,7 +92,7 @@ class SCTNBenchTracker(Tracker):
             return {"ac_ops": row["ac_ops"], "mac_ops": row["mac_ops"], "energy_pj": row["energy_pj"],
                     "state_updates": row["state_updates"], "activations": 0.0, "evaluations": n}
         n = len(candidates)
-        ops = candidate_ops(model, segment.events, segment.t0_us, candidates)
+        ops = candidate_ops(model, segment.events, self._t0(segment), candidates)
         bias = bias_additions(model) * n  # 0 in the paper preset (no biases)
         row = tracker_energy(n, ac_ops=(ops + bias) / n, state_updates=snn_state_updates(cfg))  # the table's function
         return {"ac_ops_per_candidate": ops / n, "ac_ops": ops, "bias_ac_ops": bias, "mac_ops": 0.0,

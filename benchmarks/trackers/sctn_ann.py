@@ -23,6 +23,7 @@ class TwinBenchTracker(SCTNBenchTracker):
     """The ANN twin behind the benchmark interface (shipped checkpoint by default)."""
 
     name = "sctn_ann"
+    operations = ("mac_ops", "activations")
 
     def __init__(self, **options) -> None:
         from sctn.ann import load_twin

@@ -9,7 +9,9 @@ Segments that count: see benchmarks/evaluation/protocol.py (initialisation segme
 ground truth never count; a failure, IoU < 0.5, re-initialises on the next segment). --protocol ope
 runs one pass without re-initialisation instead and reports success AUC and precision at 20 px
 (benchmarks/evaluation/ope.py). Either way <out>/<tracker>/ gets per-sequence boxes, times and (re-initialising
-protocol) VOT trajectories (benchmarks/analysis/sequence_files.py).
+protocol) VOT trajectories (benchmarks/analysis/sequence_files.py). --protocol stream scores each tracker on
+the stream as it arrives, its answers late by its latency (--latency, --query-hz, --stream-window, --predictive;
+benchmarks/evaluation/stream.py, docs/benchmarks.md).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
@@ -44,7 +46,8 @@ from benchmarks.bench.plan import DEFAULT_DATA
 # run_benchmark's parameters as the flags that set them, for its messages (dvsot.core.errors.label)
 FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": "--jobs", "scheduler": "--scheduler",
          "tracker_modules": "--tracker-module", "max_segments": "--max-segments", "plots": "--plots",
-         "videos": "--video", "checkpoint": "--checkpoint", "options": "--option"}
+         "videos": "--video", "checkpoint": "--checkpoint", "options": "--option", "protocol": "--protocol",
+         "latency": "--latency", "query_hz": "--query-hz", "window": "--stream-window", "predictive": "--predictive"}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -75,9 +78,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
                    help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05 "
                         "(checked before the run)")
-    p.add_argument("--protocol", choices=["ar", "ope"], default="ar",
+    p.add_argument("--protocol", choices=["ar", "ope", "stream"], default="ar",
                    help="ar: the paper's A / R / ARscore with re-initialisation (default); ope: one pass, "
-                        "success AUC and precision at 20 px")
+                        "success AUC and precision at 20 px; stream: latency-aware streaming evaluation "
+                        "(benchmarks/evaluation/stream.py)")
+    p.add_argument("--latency", action="append", default=None, metavar="MODEL",
+                   help="stream: measured (default), scaled:F[,F...] (measured x F; several give a score curve) or "
+                        "declared:PROFILE (counted operations x a hardware profile: cpu, loihi); repeatable")
+    p.add_argument("--query-hz", type=float, default=None,
+                   help="stream: ground-truth queries per second, 1 to 1e6 (default 1000)")
+    p.add_argument("--stream-window", choices=["last", "since"], default=None,
+                   help="stream: each call gets the last 10 ms of events (default) or all since its previous call")
+    p.add_argument("--predictive", action="store_true",
+                   help="stream: also score each answer extrapolated by its latency (a row of its own)")
     p.add_argument("--skip-absent", action="store_true",
                    help="leave segments whose target is wholly hidden unscored, as GOT-10k does (default: scored "
                         "apart, in the attribute table's absent column, as VOT-LT treats full occlusion)")
@@ -91,7 +104,9 @@ def run(args: argparse.Namespace) -> int:
     done = run_benchmark(args.tracker, args.data, args.split, args.out, args.jobs, args.scheduler, args.tracker_module,
                          args.max_segments, args.plots, args.video, args.checkpoint, not args.no_energy, args.option,
                          args.protocol, progress=not args.quiet, show=lambda r: print(tables_text(r)), labels=FLAGS,
-                         skip_absent=args.skip_absent)
+                         skip_absent=args.skip_absent,
+                         stream={"latency": args.latency, "query_hz": args.query_hz, "window": args.stream_window,
+                                 "predictive": args.predictive})
     print("written: " + ", ".join(str(x) for x in done.paths.values()))
     for r in done.failed:
         print(f"dvsot bench: failed: {r.tracker} on {r.sequence}: {r.error}", file=sys.stderr)

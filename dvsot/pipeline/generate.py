@@ -21,7 +21,7 @@ from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
 from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest
 from dvsot.events import EventSimulator
 from dvsot.runtime.outputs import run_outputs, writing
-from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times
+from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times, with_extra_times
 from dvsot.scene.shapes import mesh_for, sample_points
 from dvsot.pipeline.sequence import write_sequence
 from dvsot.scene.trajectory import pose_and_scale, pose_matrix, project
@@ -69,8 +69,9 @@ def sample_times(cfg: SceneConfig) -> np.ndarray:
     """Motion-bounded render times in seconds for a scene."""
     s, k = cfg.sampling, cfg.sensor.intrinsics()
     window = (-_MARGIN_PX, -_MARGIN_PX, k.width + _MARGIN_PX, k.height + _MARGIN_PX)
-    return motion_bounded_times(scene_projector(cfg), 0.0, cfg.duration_s, s.max_displacement_px, s.min_rate_hz,
-                                s.max_rate_hz, window)
+    times = motion_bounded_times(scene_projector(cfg), 0.0, cfg.duration_s, s.max_displacement_px, s.min_rate_hz,
+                                 s.max_rate_hz, window)
+    return with_extra_times(times, np.asarray(s.extra_times_ms, np.float64) / 1000.0)
 
 
 

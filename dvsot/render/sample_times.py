@@ -81,6 +81,19 @@ def motion_bounded_times(project: Callable[[float], np.ndarray], t_start_s: floa
 _MERGE_S = 1e-6  # the dataset's time resolution (1 us), in seconds
 
 
+def with_extra_times(times: np.ndarray, extra_s: np.ndarray) -> np.ndarray:
+    """Sample times (seconds) with extra instants merged in, in order; an extra instant on the same microsecond as
+    a sample is that sample. Extra samples only shorten intervals, so the motion bound still holds."""
+    times = np.asarray(times, dtype=np.float64)
+    extra = np.asarray(extra_s, dtype=np.float64).ravel()
+    if extra.size == 0:
+        return times
+    both = np.concatenate([times, extra[(extra >= times[0]) & (extra <= times[-1])]])
+    us = np.round(both * 1e6).astype(np.int64)
+    _, first = np.unique(us, return_index=True)  # in time order; the motion-bounded sample wins a shared microsecond
+    return both[first]
+
+
 def _points(project: Callable[[float], np.ndarray], t: float) -> np.ndarray:
     """project(t) as a float (K, 2) array, checked once per call (cheap next to a projection)."""
     a = np.asarray(project(t), dtype=np.float64)

@@ -278,6 +278,8 @@ class Sampling(Strict):
     min_rate_hz: Float = Field(100.0, gt=0)
     max_rate_hz: Float = Field(5000.0, gt=0, le=1e6)  # the file's 1 us resolution: no two samples share one
     points_per_object: Int = Field(400, ge=8, le=100000)
+    extra_times_ms: list[Annotated[Float, Field(ge=0)]] = Field(
+        [], max_length=100000, description="milliseconds: render these instants too (ground truth exactly there)")
 
     @model_validator(mode="after")
     def _rates(self) -> "Sampling":
@@ -307,6 +309,14 @@ class SceneConfig(Strict):
     render: Render = Render()
     events: SceneEvents = SceneEvents()
     sampling: Sampling = Sampling()
+
+    @model_validator(mode="after")
+    def _extra_times_inside(self) -> "SceneConfig":
+        late = [t for t in self.sampling.extra_times_ms if t > self.duration_s * 1000]
+        if late:
+            raise ValueError(f"sampling.extra_times_ms holds {late[0]:g}, after the scene's end "
+                             f"({self.duration_s * 1000:g} ms)")
+        return self
 
     @model_validator(mode="after")
     def _direct_shading_lights(self) -> "SceneConfig":

@@ -73,6 +73,7 @@ class SiamFCTracker(Tracker):
     """SiamFC on ATSLTD frames with the weights trained here (shipped checkpoint by default)."""
 
     name = "siamfc"
+    operations = ("mac_ops", "activations")
 
     def __init__(self, **options) -> None:
         from benchmarks.trackers.siamfc.model import load_siamfc

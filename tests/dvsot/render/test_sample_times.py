@@ -93,3 +93,21 @@ def test_max_displacement_window_keeps_points_inside_at_either_end():
     b = np.array([[-400.0, 5.0], [6.0, 5.0], [3.0, 5.0]])
     assert max_displacement(a, b) == 100.0
     assert max_displacement(a, b, (0.0, 0.0, 10.0, 10.0)) == 23.0  # the far point is out at both ends
+
+
+def test_extra_times_are_merged_in_order_and_a_shared_microsecond_is_one_sample():
+    from dvsot.render.sample_times import with_extra_times
+
+    times = np.array([0.0, 0.01, 0.02])
+    merged = with_extra_times(times, np.array([0.015, 0.0100004, 0.005, 0.03]))
+    np.testing.assert_array_equal(merged, [0.0, 0.005, 0.01, 0.015, 0.02])  # outside the span: dropped
+    assert with_extra_times(times, np.array([])) is times
+
+
+def test_extra_times_after_the_scene_are_refused():
+    from dvsot.scene import parse_scene
+    from tests.synthetic import MINIMAL_SCENE
+
+    with pytest.raises(Exception, match="extra_times_ms holds 150"):
+        parse_scene(MINIMAL_SCENE + "sampling: {extra_times_ms: [50, 150]}\n")
+    assert parse_scene(MINIMAL_SCENE + "sampling: {extra_times_ms: [50]}\n").sampling.extra_times_ms == [50.0]
