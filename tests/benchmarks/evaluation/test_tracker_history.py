@@ -70,11 +70,13 @@ def untrained(tmp_path_factory) -> dict:
 def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, untrained, names):
     with ExitStack() as stack:
         spawn = get_context("spawn")
-        pools = [stack.enter_context(ProcessPoolExecutor(1, mp_context=spawn)) for _ in range(len(names) + 1)]
-        shared = pools[0].submit(run_in_order, names + names[::-1], sequence, untrained)  # each twice, after all others
-        alone = {n: p.submit(run_in_order, [n], sequence, untrained) for n, p in zip(names, pools[1:])}  # fresh each
+        pools = [stack.enter_context(ProcessPoolExecutor(1, mp_context=spawn)) for _ in names]
+        # each twice, after all the others; the first tracker's first run is its run alone in a fresh worker
+        shared = pools[0].submit(run_in_order, names + names[::-1], sequence, untrained)
+        alone = {n: p.submit(run_in_order, [n], sequence, untrained)
+                 for n, p in zip(names[1:], pools[1:])}  # a fresh worker each
         runs = shared.result(timeout=600)
-        first = {n: f.result(timeout=600)[0] for n, f in alone.items()}
+        first = {names[0]: runs[0], **{n: f.result(timeout=600)[0] for n, f in alone.items()}}
     for name, boxes, error in runs:
         assert error is None and first[name][2] is None, (name, error, first[name][2])
         np.testing.assert_array_equal(boxes, first[name][1], err_msg=f"{name}: other boxes after other trackers")

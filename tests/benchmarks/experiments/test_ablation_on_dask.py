@@ -1,5 +1,6 @@
 """benchmarks.experiments.ablation --scheduler: each (row, seed) a Dask task on a real LocalCluster of two single-threaded
-workers (one cluster for the module, reached at its tcp:// address), on the two tiny CI scenes."""
+workers (one cluster for the module, reached at its tcp:// address), on the two tiny CI scenes (--ci) and on two
+synthetic squares. The workers' trackers fine-tune once (fail_run_preload.py): these tests are about scheduling."""
 
 import json
 import logging
@@ -7,13 +8,14 @@ import os
 
 import dask
 import pytest
+from synthetic import moving_square_file
 
 from benchmarks.experiments.ablation import cli
 
 pytestmark = pytest.mark.blender
 
 PRELOAD = os.path.join(os.path.dirname(__file__), "fail_run_preload.py")
-QUICK = ["--ci", "--rows", "paper", "fast_nearest", "--seeds", "2", "--epochs", "1", "--segments-per-epoch", "2",
+QUICK = ["--rows", "paper", "fast_nearest", "--seeds", "2", "--epochs", "1", "--segments-per-epoch", "2",
          "--batch-segments", "1", "--candidates", "8", "--max-segments", "3", "--retries", "1"]
 
 
@@ -34,6 +36,16 @@ def cluster(tmp_path_factory):
         del os.environ["DVSOT_TEST_FAIL_RUN"]
 
 
+@pytest.fixture(scope="module")
+def squares(tmp_path_factory) -> list[str]:
+    """--train and --test arguments: two small synthetic squares, written in a fraction of a CI scene's render."""
+    d = tmp_path_factory.mktemp("squares")
+    train = moving_square_file(d / "train.h5", width=96, height=72, size=16, duration_ms=60)
+    test = moving_square_file(d / "test.h5", width=96, height=72, size=16, duration_ms=60,
+                              velocity_px_s=(-120.0, 50.0), start=(60.0, 20.0), split="test", seed=1)
+    return ["--train", str(train), "--test", str(test)]
+
+
 def records(out):
     return [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
 
@@ -42,7 +54,7 @@ def test_seeds_run_as_tasks_and_a_failed_attempt_is_retried_on_the_other_worker(
     address, control = cluster
     control.write_text("paper 1 once")
     out = tmp_path / "abl"
-    assert cli(QUICK + ["--scheduler", address, "--out", str(out)]) == 0
+    assert cli(QUICK + ["--ci", "--scheduler", address, "--out", str(out)]) == 0
     recs = records(out)
     results = {(r["row"], r["seed"]): r for r in recs if "error" not in r}
     assert set(results) == {("paper", 0), ("paper", 1), ("fast_nearest", 0), ("fast_nearest", 1)}
@@ -58,15 +70,15 @@ def test_seeds_run_as_tasks_and_a_failed_attempt_is_retried_on_the_other_worker(
     assert "ablation: paper seed 1 failed on tcp://127.0.0.1:" in cap.err and "retrying" in cap.err
     assert "| paper |" in cap.out and "| fast_nearest |" in cap.out
     # a rerun has every result: nothing runs, not even a cluster
-    assert cli(QUICK + ["--scheduler", "local:2", "--out", str(out)]) == 0
+    assert cli(QUICK + ["--ci", "--scheduler", "local:2", "--out", str(out)]) == 0
     assert records(out) == recs
 
 
-def test_a_run_that_keeps_failing_is_recorded_and_the_others_finish(cluster, tmp_path, capsys):
+def test_a_run_that_keeps_failing_is_recorded_and_the_others_finish(cluster, squares, tmp_path, capsys):
     address, control = cluster
     control.write_text("paper 0 always")
     out = tmp_path / "abl"
-    assert cli(QUICK + ["--scheduler", address, "--out", str(out)]) == 1
+    assert cli(QUICK + squares + ["--scheduler", address, "--out", str(out)]) == 1
     recs = records(out)
     assert {(r["row"], r["seed"]) for r in recs if "error" not in r} == {("paper", 1), ("fast_nearest", 1)}
     fails = [r for r in recs if "error" in r]
