@@ -23,7 +23,8 @@ demo: $(STAMP)
 	$(BIN)/dvsot info out/quickstart.h5
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto
+	# loadfile: each test file runs on one worker, so its module-scoped fixtures (trained networks) run once.
+	$(BIN)/python -m pytest -n auto --dist loadfile
 
 # ruff (the test extras' pin) with pyproject.toml's [tool.ruff]: style, import order, pyflakes; seconds
 lint: $(STAMP)
