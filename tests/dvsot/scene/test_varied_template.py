@@ -38,7 +38,7 @@ def validation_classes() -> set:
     return {_cls(v.scene["target"]["shape"]) for v in draw_variants(tpl, 100)}
 
 
-def test_pairings() -> set:
+def split_pairings() -> set:
     """(target class, backdrop) of every test-split scene file of blender_scenes/."""
     pairs = set()
     for p in SCENES.glob("*.yaml"):
@@ -49,7 +49,7 @@ def test_pairings() -> set:
 
 
 def test_varied_template_excludes_held_out_and_validation_classes_and_test_pairings() -> None:
-    held, val, pairs = held_out_classes(), validation_classes(), test_pairings()
+    held, val, pairs = held_out_classes(), validation_classes(), split_pairings()
     assert {"cat", "ball", "torus"} <= held and {"cylinder", "plane"} <= val  # the sets are read, not empty
     assert {("bottle", "window"), ("cat", "sea"), ("cube", "galaxy")} <= pairs
     tpl = read_template(SCENES / "templates" / "dvsot21_varied.yaml")
