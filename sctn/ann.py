@@ -184,8 +184,16 @@ def default_twin_path() -> Path:
 
 
 def load_twin(path: str | os.PathLike | None = None) -> tuple[SCTNTwin, dict]:
-    """The twin and metadata of a sctn_ann checkpoint (the shipped one if path is None); UserError if unusable."""
-    from sctn.checkpoint import load_model
+    """The twin and metadata of a sctn_ann checkpoint (the shipped one if path is None); UserError if unusable; a
+    TrainingRuleWarning naming what differs when it was trained with another recipe than `dvsot train`'s."""
+    import warnings
 
-    return load_model(path, default_twin_path(), KIND, "sctn_ann", lambda blob: SCTNTwin(TwinConfig(**blob["config"])),
-                      article="an")
+    from sctn.checkpoint import TrainingRuleWarning, load_model
+    from sctn.training.snn import training_note
+
+    model, meta = load_model(path, default_twin_path(), KIND, "sctn_ann",
+                             lambda blob: SCTNTwin(TwinConfig(**blob["config"])), article="an")
+    note = training_note(meta.get("train_config"), TwinConfig(), skip_network=())
+    if note:
+        warnings.warn(f"{path or default_twin_path()}: {note}", TrainingRuleWarning, stacklevel=2)
+    return model, meta

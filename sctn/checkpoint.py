@@ -28,7 +28,7 @@ class LegacyLayoutWarning(UserWarning):
 
 
 class TrainingRuleWarning(UserWarning):
-    """A checkpoint trained another way than today's preset: error-time rule or initialisation (sctn.training.snn)."""
+    """A checkpoint trained with another recipe than `dvsot train`'s (sctn.training.snn.training_note)."""
 
 
 def layout_note(cfg: NetworkConfig) -> str | None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any, Literal, get_args
 
 from pydantic import Field, model_validator
+from pydantic_core import PydanticCustomError
 
 from dvsot.core.strict import Bool, Float, Int, Strict
 from sctn.samples import TRACK
@@ -52,6 +53,31 @@ class SearchParams(Strict):
                     raise ValueError(f"{old} was replaced by reinit (new, online, once): {now}")
         return data
 
+    @model_validator(mode="after")
+    def _honoured(self) -> "SearchParams":
+        """Refuse, in one line naming the settings, a combination the tracker cannot honour."""
+        problem = self.combination_problem()
+        if problem:
+            raise PydanticCustomError("combination", problem)
+        return self
+
+    def combination_problem(self) -> str | None:
+        """Why these settings together cannot be run as they say, or None."""
+        if self.top_k > self.n_candidates:
+            return f"top_k {self.top_k} needs at least as many candidates (n_candidates is {self.n_candidates})"
+        if self.trans > self.trans_max:
+            return f"trans {self.trans:g} starts above trans_max {self.trans_max:g}, the range's largest"
+        if self.reinit != "new" and self.finetune_iters == 0:
+            return (f"reinit {self.reinit!r} keeps a tuning, but finetune_iters is 0: nothing is tuned (every "
+                    "re-initialisation is then a new tracker; leave reinit out)")
+        return None
+
+
+# the fast mode's own settings: given without fast=true, the tracker would ignore them
+FAST_ONLY = ("crop", "finetune_search_iters")
+# fine-tuning's own settings: given where nothing is fine-tuned, the tracker would ignore them
+FINETUNE_ONLY = ("error_time", "finetune_balanced", "finetune_layers")
+
 
 class SCTNParams(SearchParams):
     """SCTNTracker's settings: Algorithm 1's (SearchParams) and the fast mode, a named approximation (off)."""
@@ -62,3 +88,21 @@ class SCTNParams(SearchParams):
     error_time: ErrorTime = Field("stca", description="fine-tuning: the step each sample's error sits at")
     finetune_balanced: Bool = Field(False, description="fine-tuning mini-batches of 32 positives and 96 negatives")
     finetune_layers: FinetuneLayers = Field("all", description="fine-tune every layer, or the fully connected ones")
+
+    def combination_problem(self) -> str | None:
+        """Algorithm 1's combinations (SearchParams'), then the fast mode's and fine-tuning's settings given where the
+        tracker would ignore them (a search-tuning count of 0 without the fast mode is no request, so it passes)."""
+        problem = super().combination_problem()
+        if problem:
+            return problem
+        given = self.model_fields_set
+        if not self.fast:
+            for name in FAST_ONLY:
+                if name in given and not (name == "finetune_search_iters" and self.finetune_search_iters == 0):
+                    return f"{name} is the fast mode's setting: it needs fast=true"
+        tunes = self.finetune_iters > 0 or (self.fast and self.finetune_search_iters > 0)
+        if not tunes:
+            for name in FINETUNE_ONLY:
+                if name in given:
+                    return f"{name} is fine-tuning's setting, but nothing is fine-tuned (finetune_iters is 0)"
+        return None

@@ -58,7 +58,8 @@ class SCTNTracker:
         """`model`: a network or a checkpoint path (the shipped one if None); `params` (SCTNParams), with any of
         its fields given as keywords on top (SCTNTracker(model, seed=1, fast=True)); bad values raise
         pydantic's ValidationError naming the field."""
-        self.params = p = SCTNParams(**{**(params.model_dump() if params is not None else {}), **settings})
+        self.params = p = SCTNParams(**{**(params.model_dump(exclude_unset=True) if params is not None else {}),
+                                        **settings})
         if model is None or isinstance(model, (str, os.PathLike)):
             from sctn.checkpoint import load_checkpoint
 

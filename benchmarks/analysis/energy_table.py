@@ -18,6 +18,11 @@ fc1's sums of the up to four integer crops around a candidate are mixed, MACs) a
 nearest-cell ones. Each distinct integer crop is evaluated once. The ANN rows are counted by torch's FLOP counter on the
 layers the trackers run: SCTN's ANN twin (sctn/ann.py) once per candidate, SiamFC's backbone on its
 scale pyramid and the cross-correlation once per frame (benchmarks/trackers/siamfc/tracker.py frame_macs).
+
+Beside these sampled rows, `dvsot bench` states each tracker's energy as it ran on the bench's own results
+(energy_as_run_rows, one call of sctn.energy_run.energy_as_run per tracker): per evaluation, per tracked segment
+(the real candidates), per initialisation (fine-tuning's forward and backward) and per sequence, each split into
+synaptic operations and neuron-state updates, with the paper's convention (synaptic per evaluation) named.
 """
 
 from __future__ import annotations
@@ -259,6 +264,64 @@ def format_energy_table(table: dict) -> str:
                  f"not in pJ; AC {E_AC_PJ} pJ, MAC {E_MAC_PJ} pJ; x SCTN: synaptic energy per segment over "
                  "SCTN's per-candidate one; the paper's Table 3 read per evaluation)")
     lines += table.get("notes", [])
+    as_run = format_energy_as_run(table.get("as_run") or {})
+    return "\n".join(lines + ([""] + [as_run] if as_run else []))
+
+
+AS_RUN_BASES = (("per_evaluation", "per evaluation"), ("per_segment", "per tracked segment"),
+                ("per_initialisation", "per initialisation"), ("per_sequence", "per sequence"))
+PAPER_CONVENTION = "the paper's convention (Table 3): synaptic operations per evaluation, no neuron-state updates"
+
+
+def energy_as_run_rows(results) -> dict:
+    """{tracker: sctn.energy_run.energy_as_run of its sequences' run records} for every tracker of a bench run's
+    results (benchmarks.evaluation.protocol.SequenceResult) that counted its operations, in run order."""
+    from sctn.energy_run import energy_as_run
+
+    by_tracker: dict[str, list] = {}
+    for r in results:
+        by_tracker.setdefault(r.tracker, []).append(r)
+    rows = {name: energy_as_run(records) for name, records in by_tracker.items()}
+    return {name: row for name, row in rows.items() if row is not None}
+
+
+def format_energy_as_run(rows: dict) -> str:
+    """Terminal text of the trackers' energy as they ran: per evaluation, tracked segment, initialisation and
+    sequence, each split into synaptic operations (AC, MAC, pJ) and neuron-state updates (C-LIF updates or ANN
+    activations, pJ); the total over SCTN's on each basis; the paper's convention named. '' if no tracker counted."""
+    from sctn.energy import E_AC_PJ, E_ACTIVATION_PJ, E_CLIF_UPDATE_PJ, E_MAC_PJ
+
+    if not rows:
+        return ""
+
+    def g(v) -> str:
+        return "-" if v is None else f"{v:.3g}"
+
+    ref = rows.get("sctn")
+    lines = ["energy of each tracker as it ran (this run's own segments and initialisations; sctn.energy_run):",
+             f"{'tracker':12s} {'basis':20s} | {'synaptic: AC':>12s} {'MAC':>9s} {'pJ':>9s} | "
+             f"{'state: C-LIF':>12s} {'activations':>11s} {'pJ':>9s} | {'total pJ':>9s} {'x sctn':>7s}", "-" * 124]
+    for name, row in rows.items():
+        for key, basis in AS_RUN_BASES:
+            b = row[key]
+            syn, state = b["synaptic"], b["state"]
+            x = b["energy_pj"] / ref[key]["energy_pj"] if ref and ref[key]["energy_pj"] else None
+            lines.append(f"{name:12s} {basis:20s} | {g(syn['ac_ops']):>12s} {g(syn['mac_ops']):>9s} "
+                         f"{g(syn['energy_pj']):>9s} | {g(state['state_updates']):>12s} {g(state['activations']):>11s} "
+                         f"{g(state['energy_pj']):>9s} | {g(b['energy_pj']):>9s} {g(x):>7s}")
+        paper = row["paper_convention"]
+        x = paper["energy_pj"] / ref["paper_convention"]["energy_pj"] if ref and ref["paper_convention"]["energy_pj"] \
+            else None
+        lines.append(f"{name:12s} {'paper convention':20s} | {g(paper['ac_ops']):>12s} {g(paper['mac_ops']):>9s} "
+                     f"{g(paper['energy_pj']):>9s} | (synaptic x sctn {g(x)}; "
+                     f"{row['evaluations_per_segment']:g} evaluations per tracked segment; {row['sequences']} "
+                     f"sequences, {row['tracked_segments']} tracked segments, {row['initialisations']} "
+                     "initialisations counted)")
+    lines.append(f"(per sequence: initialisations x per initialisation + tracked segments x per tracked segment, "
+                 f"averaged over sequences; an initialisation: fine-tuning's forward as it ran and its backward; "
+                 f"AC {E_AC_PJ} pJ, MAC {E_MAC_PJ} pJ, C-LIF update {E_CLIF_UPDATE_PJ:.3g} pJ, activation "
+                 f"{E_ACTIVATION_PJ:.3g} pJ; {PAPER_CONVENTION}; x sctn: total energy over "
+                 "sctn's on the same basis)")
     return "\n".join(lines)
 
 

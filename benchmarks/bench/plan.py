@@ -391,10 +391,11 @@ def run_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, sp
         summary = summarise(results)
     table = None
     if p.model is not None and energy:
-        from benchmarks.analysis.energy_table import energy_table
+        from benchmarks.analysis.energy_table import energy_as_run_rows, energy_table
 
         # computed before writing: a crash here leaves out as it was
         table = energy_table(p.model, p.files, **p.ann_models, notes=p.notes)
+        table["as_run"] = energy_as_run_rows(results)  # the trackers as this run ran them (sctn.energy_run)
     run = BenchmarkRun(p, results, summary, table)
     if show is not None:
         show(run)

@@ -247,10 +247,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=5, help="seeds 0 .. N-1")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--minutes", type=float, default=None, help="also stop each training after this long")
-    p.add_argument("--epochs", type=int, default=2)
-    p.add_argument("--segments-per-epoch", type=int, default=400)
-    p.add_argument("--batch-segments", type=int, default=2)
-    p.add_argument("--lr", type=float, default=3e-3)
+    # the training budget: the recipe's (sctn.training.snn.TrainConfig's defaults) unless given
+    p.add_argument("--epochs", type=int, default=None, help="default: the recipe's")
+    p.add_argument("--segments-per-epoch", type=int, default=None, help="default: the recipe's")
+    p.add_argument("--batch-segments", type=int, default=None, help="default: the recipe's")
+    p.add_argument("--lr", type=float, default=None, help="default: the recipe's")
     p.add_argument("--val-data", nargs="+", default=None, help="validation files / dirs / globs (any split): the "
                    "silence check (target V_max on positives) on them instead of every 10th training segment")
     p.add_argument("--val-segments", type=int, default=2, help="validation segments of the silence check")
@@ -276,8 +277,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--jobs must be >= 1, got {a.jobs}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    budget = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
-              "lr": a.lr, "max_minutes": a.minutes, "val_segments": a.val_segments}
+    given = {"epochs": a.epochs, "segments_per_epoch": a.segments_per_epoch, "batch_segments": a.batch_segments,
+             "lr": a.lr}
+    budget = {**{k: v for k, v in given.items() if v is not None}, "max_minutes": a.minutes,
+              "val_segments": a.val_segments}
     log = out / "runs.jsonl"
     done = [r for r in read_log(log) if "error" not in r]  # failed attempts are run again
     have = {(r["row"], r["seed"]) for r in done}

@@ -39,7 +39,7 @@ class SCTNBenchTracker(Tracker):
         from sctn.tracker import SCTNTracker
 
         opts = SCTNOptions(**options)
-        self.tracker = SCTNTracker(opts.checkpoint, SCTNParams(**opts.model_dump(exclude=BENCH_FIELDS)))
+        self.tracker = SCTNTracker(opts.checkpoint, SCTNParams(**opts.model_dump(exclude=BENCH_FIELDS, exclude_unset=True)))
         self._start(opts.energy_every)
 
     @classmethod

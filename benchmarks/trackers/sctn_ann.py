@@ -31,7 +31,7 @@ class TwinBenchTracker(SCTNBenchTracker):
 
         opts = TwinOptions(**options)
         model, _ = load_twin(opts.checkpoint)
-        self.tracker = SCTNTracker(model, fast=False, **opts.model_dump(exclude=BENCH_FIELDS))
+        self.tracker = SCTNTracker(model, fast=False, **opts.model_dump(exclude=BENCH_FIELDS, exclude_unset=True))
         self._start(opts.energy_every)
         self._per_candidate: float | None = None
 

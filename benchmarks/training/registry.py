@@ -118,21 +118,19 @@ def configure(model: str, settings: dict, labels: Mapping[str, str] | None = Non
     return resolve(entry.config)(**settings, network=resolve(entry.network)(**net))
 
 
+# SCTN and its twin: a setting not given is TrainConfig's default (the recipe, sctn.training.snn), so no flags
+# build TrainConfig() (with the twin's TwinConfig() network)
 _SCTN_LIKE = ("loss", "channels", "fc", "squared_error", "background_term", "no_background_neuron", "bias",
               "error_time")
-_SCTN_LIKE_DEFAULTS = {"loss": "exp", "squared_error": False, "background_term": False, "bias": False,
-                       "no_background_neuron": False}
 
 register_trainer("sctn", Trainer(
     train="sctn.training.snn:train", config="sctn.training.snn:TrainConfig", network="sctn.network:NetworkConfig",
     tracker="benchmarks.training.run:sctn_tracker",
     settings=_SCTN_LIKE + ("ops_penalty", "calibrate", "tail_steps", "init", "fluctuation_xi"),
-    defaults={**_SCTN_LIKE_DEFAULTS, "ops_penalty": 0.0, "calibrate": False, "tail_steps": 0},
     rescue=("init", "calibrate / fluctuation")))
 register_trainer("sctn_ann", Trainer(
     train="sctn.ann:train_twin", config="sctn.training.snn:TrainConfig", network="sctn.ann:TwinConfig",
-    tracker="benchmarks.training.run:sctn_tracker", settings=_SCTN_LIKE + ("input",), network_settings=("input",),
-    defaults={**_SCTN_LIKE_DEFAULTS, "input": "bins"}))
+    tracker="benchmarks.training.run:sctn_tracker", settings=_SCTN_LIKE + ("input",), network_settings=("input",)))
 register_trainer("siamfc", Trainer(
     train="benchmarks.trackers.siamfc.train:train_siamfc",
     config="benchmarks.trackers.siamfc.train:SiamFCTrainConfig",

@@ -1,6 +1,7 @@
 """Train SCTN (or its ANN twin, or SiamFC) on the training split of dataset files and write a checkpoint.
 
-The command parses its flags and calls the library: benchmarks.train_model (the training registry's model,
+With no flags it trains the recipe the shipped checkpoints are trained with (sctn.training.snn.TrainConfig's
+defaults). The command parses its flags and calls the library: benchmarks.train_model (the training registry's model,
 the checks, validation, the checkpoint; benchmarks/training/).
 
 Examples:
@@ -25,11 +26,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", nargs="+", default=["data/dvsot21"], help="dataset files, directories or globs")
     p.add_argument("--split", default="train", help="split attribute to train on, or 'any' (default train)")
     p.add_argument("-o", "--output", default=None, help="checkpoint to write (default runs/<model>.pt)")
-    p.add_argument("--epochs", type=int, default=None, help="default: the model's (sctn 3, siamfc 20)")
-    p.add_argument("--segments-per-epoch", type=int, default=None, help="default 400 (siamfc: search segments)")
+    p.add_argument("--epochs", type=int, default=None,
+                   help="default: the model's recipe (sctn, sctn_ann: sctn.training.snn.TrainConfig)")
+    p.add_argument("--segments-per-epoch", type=int, default=None,
+                   help="default: the model's recipe (siamfc: search segments)")
     p.add_argument("--batch-segments", type=int, default=None,
-                   help="segments per step (sctn: 60 samples each, default 4; siamfc: pairs, default 8)")
-    p.add_argument("--lr", type=float, default=None, help="default: the model's (sctn 2e-3, siamfc 1e-3)")
+                   help="segments per step (sctn: 60 samples each; siamfc: pairs); default: the model's recipe")
+    p.add_argument("--lr", type=float, default=None, help="Adam's rate; default: the model's recipe")
     p.add_argument("--lr-schedule", choices=["constant", "cosine"], default=None,
                    help="constant (default) or cosine: from --lr to 0 over the planned steps (an ablation row)")
     p.add_argument("--loss", choices=["exp", "linear", "basic"], default=None, help="default exp (sctn, sctn_ann)")
@@ -61,9 +64,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--val-data", nargs="+", default=None, metavar="DIR",
                    help="validation files, directories or globs (any split): validate on them instead of every "
                         "10th training segment, which then all train")
-    p.add_argument("--val-every", type=int, default=None, metavar="K", help="validate every K steps (default 50)")
+    p.add_argument("--val-every", type=int, default=None, metavar="K",
+                   help="validate every K steps (default: the model's recipe)")
     p.add_argument("--val-segments", type=int, default=None, metavar="M",
-                   help="validation segments, spread over the files (default 40)")
+                   help="validation segments, spread over the files (default: the model's recipe)")
     p.add_argument("--val-arscore-every", type=int, default=None, metavar="K",
                    help="with --val-data: also track the validation sequences every K steps and at the end, and "
                         "record their ARscore (sctn, sctn_ann: a copy of the network, fine-tuned as the tracker "

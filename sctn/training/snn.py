@@ -12,6 +12,7 @@ training file, held out. Fine-tuning lives in sctn/finetune.py (`finetune`, re-e
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -32,6 +33,7 @@ from sctn.loss import ErrorTime, LossKind, error_voltages, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import (TrainBudget, TrainConfigError, Validation, fit,  # noqa: F401  (TrainConfigError)
                                 held_out, score_note, spread)
 
@@ -41,11 +43,23 @@ Init = Literal["kaiming", "calibrate", "fluctuation"]  # how the weights start (
 INIT_METHODS = {"calibrate": "calibrate", "fluctuation": "fluctuation_init"}  # init -> the network's method
 
 
-class TrainConfig(TrainBudget):
-    """Training settings of SCTN (and its twin): TrainBudget's (segments, optimiser, budget), the loss (eq. 5-6 by
-    default), the named deviations (all off: the paper preset) and the network's layer sizes."""
+# settings that shape nothing trained (which seed, when to validate, a time limit): the recipe leaves them out
+RUN_SETTINGS = ("seed", "max_minutes", "val_every", "val_segments", "val_arscore_every")
+# network fields whose difference from the preset's layout sctn.checkpoint.layout_note names already
+LAYOUT_FIELDS = ("bias", "tail_steps", "steps", "step_us")
 
-    batch_segments: int = Field(4, ge=1, le=MAX_BATCH_SEGMENTS)  # every segment's 60 samples are built at once
+
+class TrainConfig(TrainBudget):
+    """Training settings of SCTN (and its twin). The defaults are the recipe: what `dvsot train` runs with no flags
+    and what the shipped checkpoints are trained with (epochs x segments_per_epoch / batch_segments Adam steps; the
+    loss eq. 5-6, STCA's error rule, Kaiming-uniform weights); every named deviation is off (the paper preset)."""
+
+    epochs: int = Field(1, ge=1)
+    segments_per_epoch: int | None = Field(1000, ge=1)
+    batch_segments: int = Field(2, ge=1, le=MAX_BATCH_SEGMENTS)  # every segment's 60 samples are built at once
+    lr: float = Field(3e-3, gt=0, le=MAX_LEARNING_RATE)
+    val_every: int = Field(100, ge=1)
+    val_segments: int = Field(40, ge=0)
     loss: LossKind = "exp"
     error_time: ErrorTime = "stca"  # the step each sample's error sits at: STCA's rule, or "max" (an ablation row)
     ops_penalty: float = Field(0.0, ge=0)  # loss weight per million synaptic operations (ACs) per sample; 0 = off
@@ -80,24 +94,54 @@ class TrainConfig(TrainBudget):
         return self.init == "calibrate"
 
 
-def training_note(train_config: dict | None) -> str | None:
-    """What makes a checkpoint's training (its metadata's train_config) differ from today's preset in the error-time
-    rule or the initialisation, or None (also when nothing was recorded). A config without `error_time` was
-    trained before the rule became a setting: with the maximum over all steps."""
+def recipe(network: NetworkConfig | None = None) -> dict:
+    """The recipe as a checkpoint's metadata records it (JSON types): TrainConfig's defaults, less RUN_SETTINGS, with
+    `network`'s fields (the preset SCTN's by default; the twin's TwinConfig for sctn_ann)."""
+    cfg = TrainConfig() if network is None else TrainConfig(network=network)
+    return cfg.model_dump(mode="json", exclude=set(RUN_SETTINGS))
+
+
+def _plain(value: Any) -> Any:
+    """A setting's value as JSON holds it (tuples as lists), so a recorded value compares with the recipe's."""
+    return json.loads(json.dumps(value, default=str))
+
+
+def _recorded(train_config: dict, name: str, preset: Any) -> Any:
+    """A setting as a recorded train_config has it; one recorded before the setting existed ran as it says: the
+    error rule was V's maximum, the initialisation the `calibrate` flag's, every other setting the recipe's."""
+    if name in train_config:
+        return _plain(train_config[name])
+    if name == "error_time":
+        return None
+    if name == "init":
+        return "calibrate" if train_config.get("calibrate") else "kaiming"
+    return preset
+
+
+def training_note(train_config: dict | None, network: NetworkConfig | None = None,
+                  skip_network: tuple[str, ...] = LAYOUT_FIELDS) -> str | None:
+    """What makes a checkpoint's training (its metadata's train_config) differ from the recipe (`recipe(network)`),
+    one phrase per setting ("lr 0.002 (the recipe's 0.003)"), or None (also when nothing was recorded). A config
+    without `error_time` was trained before the rule became a setting: with the maximum over all steps. Network
+    fields in `skip_network` are left to the caller (sctn.checkpoint.layout_note names them)."""
     if not isinstance(train_config, dict):
         return None
+    preset = recipe(network)
     ways = []
-    rule = train_config.get("error_time")
-    preset_rule = TrainConfig.model_fields["error_time"].default
-    if rule is None:
-        ways.append("the old error-time rule (V's maximum over all steps; no error_time recorded)")
-    elif rule != preset_rule:
-        ways.append(f"error_time {rule!r} (the preset's is {preset_rule!r})")
-    init = train_config.get("init", "calibrate" if train_config.get("calibrate") else "kaiming")
-    preset_init = TrainConfig.model_fields["init"].default
-    if init != preset_init:
-        ways.append(f"init {init!r} (the preset's is {preset_init!r})")
-    return ("trained with " + " and ".join(ways)) if ways else None
+    for name, want in preset.items():
+        if name == "network":
+            continue
+        got = _recorded(train_config, name, want)
+        if name == "error_time" and got is None:
+            ways.append("the old error-time rule (V's maximum over all steps; no error_time recorded)")
+        elif got != want:
+            ways.append(f"{name} {got!r} (the recipe's {want!r})")
+    net = train_config.get("network")
+    if isinstance(net, dict):
+        for name, want in preset["network"].items():
+            if name not in skip_network and name in net and _plain(net[name]) != want:
+                ways.append(f"network {name} {net[name]!r} (the recipe's {want!r})")
+    return ("trained with another recipe than `dvsot train`'s: " + ", ".join(ways)) if ways else None
 
 
 def usable_segments(ds: Dataset, min_box_px: float) -> np.ndarray:

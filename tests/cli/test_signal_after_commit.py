@@ -75,7 +75,8 @@ def test_a_signal_during_the_final_renames_is_a_completed_run(tmp_path, inputs, 
     _, err = p.communicate(timeout=120)
     name = signal.Signals(sig).name
     assert p.returncode == 0, err
-    assert err.strip().splitlines() == [f"dvsot {command}: done; {name} arrived after its outputs were written"], err
+    lines = [ln for ln in err.strip().splitlines() if ": note: " not in ln]  # a checkpoint's note is no error
+    assert lines == [f"dvsot {command}: done; {name} arrived after its outputs were written"], err
     assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # every staged file was put in place
 
 

@@ -103,7 +103,9 @@ def test_tiny_run_writes_the_checkpoint_and_its_metadata(data, tmp_path, capsys)
     summary = json.loads(capsys.readouterr().out)
     assert summary["checkpoint"] == str(out) and summary["steps"] == 2
     model, meta = load_checkpoint(out)
-    assert model.cfg.channels == (2, 2, 2) and meta["train_config"]["lr"] == 2e-3
+    from sctn.training.snn import TrainConfig
+
+    assert model.cfg.channels == (2, 2, 2) and meta["train_config"]["lr"] == TrainConfig().lr  # the recipe's
     assert json.loads(out.with_suffix(".json").read_text())["train_config"]["epochs"] == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json", "m.pt"]
 

@@ -61,7 +61,8 @@ def test_export_model_refuses_an_extreme_time_constant_in_one_line(tmp_path: Pat
     path = _crafted(tmp_path, _huge_time_constant)
     out = tmp_path / "m.nir"
     assert main(["export-model", str(path), "-o", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
+    # the shipped checkpoint's one-line note on its recipe is not an error
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if ": note: " not in line]
     assert len(err) == 1 and "not finite" in err[0] and not out.exists()
 
 

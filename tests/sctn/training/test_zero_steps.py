@@ -31,7 +31,7 @@ def test_fewer_segments_per_epoch_than_a_batch_is_refused(index: int) -> None:
 def test_train_refuses_zero_steps_in_one_line_and_writes_nothing(tmp_path: Path, capsys, model: str) -> None:
     out = tmp_path / "c.pt"
     assert main(["train", "--model", model, "--data", str(tmp_path / "none.h5"), "-o", str(out), "--epochs", "2",
-                 "--segments-per-epoch", "3", "--quiet"]) == 2
+                 "--segments-per-epoch", "3", "--batch-segments", "4", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--segments-per-epoch is 3, fewer than batch_segments " in err[0]
     assert not out.exists()
