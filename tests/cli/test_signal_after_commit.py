@@ -139,7 +139,7 @@ import importlib.abc, os, signal, sys
 sys.argv[0] = "dvsot"
 class Finder(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path, target=None):
-        if name == "dvsot.cli":
+        if name == "dvsot.cli.flags":  # the command's own imports, after its start-up hook
             os.kill(os.getpid(), getattr(signal, sys.argv.pop(1)))
             for _ in range(10_000_000):  # the handler runs at the next bytecode
                 pass

@@ -93,4 +93,4 @@ def test_the_retired_reinit_options_are_refused_in_one_line(name) -> None:
     with pytest.raises(UserError) as err:
         check_trackers([name], {name: {"finetune_on_reinit": False}}, [spec])
     text = str(err.value)
-    assert "\n" not in text and text.startswith(f"--option {spec}") and "reinit=once" in text, text
+    assert "\n" not in text and text.startswith(f"options {spec}") and "reinit=once" in text, text
