@@ -18,7 +18,7 @@ from typing import Callable, Mapping, Sequence
 from dvsot.core.errors import label
 
 DEFAULT_DATA = "data/dvsot21"
-CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # trackers with a `checkpoint` option
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc", "ocean", "automatch")  # trackers with a `checkpoint` option
 
 
 @dataclass

@@ -29,6 +29,8 @@ BUILTIN: dict[str, str] = {
     "sctn": "benchmarks.trackers.sctn",
     "sctn_ann": "benchmarks.trackers.sctn_ann",
     "siamfc": "benchmarks.trackers.siamfc.tracker",
+    "ocean": "benchmarks.trackers.ocean.tracker",
+    "automatch": "benchmarks.trackers.automatch.tracker",
     "rct": "benchmarks.trackers.rct",
     "csrt": "benchmarks.trackers.frame_based",
     "kcf": "benchmarks.trackers.frame_based",

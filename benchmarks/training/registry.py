@@ -137,3 +137,10 @@ register_trainer("siamfc", Trainer(
     train="benchmarks.trackers.siamfc.train:train_siamfc",
     config="benchmarks.trackers.siamfc.train:SiamFCTrainConfig",
     tracker="benchmarks.training.run:siamfc_tracker"))
+register_trainer("ocean", Trainer(
+    train="benchmarks.trackers.ocean.train:train_ocean", config="benchmarks.trackers.ocean.train:OceanTrainConfig",
+    tracker="benchmarks.trackers.ocean.tracker:trained_tracker"))
+register_trainer("automatch", Trainer(
+    train="benchmarks.trackers.automatch.train:train_automatch",
+    config="benchmarks.trackers.automatch.train:AutoMatchTrainConfig",
+    tracker="benchmarks.trackers.automatch.tracker:trained_tracker"))

@@ -69,7 +69,7 @@ def anchor_free_loss(outputs: tuple[torch.Tensor, ...], boxes: torch.Tensor,
     reg = iou_loss(dist, target, inside)
     c = F.binary_cross_entropy_with_logits(cls, labels, weight=w)
     a = F.binary_cross_entropy_with_logits(aware, labels, weight=w)
-    return reg + c + a, {"reg_loss": float(reg), "cls_loss": float(c), "aware_loss": float(a)}
+    return reg + c + a, {"reg_loss": reg.item(), "cls_loss": c.item(), "aware_loss": a.item()}
 
 
 def evaluate(model: nn.Module, batch: tuple[torch.Tensor, ...]) -> dict:
