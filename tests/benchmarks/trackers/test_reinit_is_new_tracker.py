@@ -21,6 +21,22 @@ torch.set_num_threads(1)
 OPTIONS = {"sctn": {"n_candidates": 12, "finetune_iters": 2, "energy_every": 0},
            "sctn_ann": {"n_candidates": 12, "finetune_iters": 2, "energy_every": 0}}
 REINIT_AT = 4
+# trackers that ship no checkpoint run on an untrained network of theirs, saved as a checkpoint: what is tested is
+# the tracker's state, not its weights
+UNTRAINED = {"ocean": "benchmarks.trackers.ocean.model:Ocean",
+             "automatch": "benchmarks.trackers.automatch.model:AutoMatch"}
+
+
+@pytest.fixture(scope="module")
+def untrained(tmp_path_factory) -> dict[str, dict]:
+    """{tracker: {"checkpoint": path}} of an untrained network for each tracker of UNTRAINED."""
+    from benchmarks.training.registry import resolve
+    from sctn.checkpoint import save_checkpoint
+
+    d = tmp_path_factory.mktemp("untrained")
+    torch.manual_seed(0)
+    return {name: {"checkpoint": str(save_checkpoint(d / f"{name}.pt", resolve(build)(), {}, kind=name))}
+            for name, build in UNTRAINED.items()}
 
 
 @pytest.fixture(scope="module")
@@ -43,11 +59,11 @@ def _run(tracker, segs, wh, inits: list[int]) -> dict[int, np.ndarray]:
     return out
 
 
-def _new(name: str):
+def _new(name: str, untrained: dict[str, dict]):
     from dvsot.core.errors import UserError
 
     try:
-        return get_tracker(name, **OPTIONS.get(name, {}))
+        return get_tracker(name, **OPTIONS.get(name, {}), **untrained.get(name, {}))
     except UserError as exc:  # a checkpoint that is truly not there (a source tree without the shipped files)
         if "checkpoint" in str(exc).lower() and "no such" in str(exc).lower():
             pytest.skip(f"{name}: {exc}")
@@ -55,10 +71,10 @@ def _new(name: str):
 
 
 @pytest.mark.parametrize("name", available_trackers())
-def test_reinitialised_tracker_gives_what_a_new_one_gives(sequence, name) -> None:
+def test_reinitialised_tracker_gives_what_a_new_one_gives(sequence, untrained, name) -> None:
     segs, wh = sequence
-    again = _run(_new(name), segs, wh, [0, REINIT_AT])
-    fresh = _run(_new(name), segs, wh, [REINIT_AT])
+    again = _run(_new(name, untrained), segs, wh, [0, REINIT_AT])
+    fresh = _run(_new(name, untrained), segs, wh, [REINIT_AT])
     assert len(fresh) >= 4 and set(fresh) <= set(again)
     for i in fresh:
         assert np.array_equal(again[i], fresh[i]), f"{name}: segment {i}: {again[i]} after a re-initialisation, " \
