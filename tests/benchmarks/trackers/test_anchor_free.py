@@ -246,3 +246,19 @@ def test_train_and_bench_commands(data, tmp_path, capsys):
                  "--no-energy", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "train one with `dvsot train --model automatch`" in err and not (tmp_path / "c").exists()
+
+
+def test_automatch_paper_size_count():
+    from benchmarks.trackers.reference_nets import AutoMatch as PaperAutoMatch, count_siamese
+
+    with torch.device("meta"):
+        net = PaperAutoMatch()
+    with torch.no_grad():
+        out = net(torch.zeros(1, 3, 128, 128, device="meta"), torch.zeros(1, 3, 256, 256, device="meta"))
+    assert [tuple(t.shape) for t in out] == [(1, 4, 31, 31), (1, 1, 31, 31), (1, 1, 31, 31)]
+    frame = count_siamese(net)["per_frame"]["by_layer"]
+    cells, search = 7 * 7, 31 * 31
+    assert frame["AutoMatch.reg_match.ops.0"] == search * cells * 256  # pairwise relation's dot products
+    assert frame["AutoMatch.reg_match.ops.0.w"] == search * cells * 256  # its 1x1 map, 49 -> 256 channels
+    assert frame["AutoMatch.cls_match.ops.1"] == search * cells * 256 + search * cells  # attention, mask carried
+    assert frame["AutoMatch.reg_pred"] == search * 9 * 256 * 4
