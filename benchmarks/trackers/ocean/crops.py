@@ -6,14 +6,19 @@ region covers that extent x search_size / exemplar_size. A box in a crop is (x0,
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
-from benchmarks.trackers.siamfc.train import Frames
+
+if TYPE_CHECKING:  # the training's frames: the tracker, which imports this module, needs no training code
+    from benchmarks.trackers.siamfc.train import Frames
 
 
 def box_in_crop(box_xywh: np.ndarray, centre_xy: np.ndarray, extent_px: float, out_px: int) -> np.ndarray:
-    """The sensor box (x, y, w, h px) in the crop of side extent_px centred at centre_xy resized to out_px: x0 y0 x1 y1."""
+    """The sensor box (x, y, w, h px) in the crop of side extent_px centred at centre_xy, resized to out_px: its
+    x0 y0 x1 y1 in crop px."""
     s = out_px / extent_px
     x0 = (box_xywh[0] - centre_xy[0]) * s + out_px / 2
     y0 = (box_xywh[1] - centre_xy[1]) * s + out_px / 2

@@ -121,7 +121,8 @@ class AnchorFreeHead(nn.Module):
         self.align_pred = nn.Conv2d(channels, 1, 1)
 
     def aligned(self, feat: torch.Tensor, boxes: torch.Tensor) -> torch.Tensor:
-        """Features (B, 9 C, R, R): `feat` sampled at the 3x3 grid spanning each location's box (B, 4, R, R), crop px."""
+        """Features (B, 9 C, R, R): `feat` sampled at the 3x3 grid spanning each location's box (B, 4, R, R) in
+        crop px."""
         b, c, r, _ = feat.shape
         pos = locations(r, self.search_size, TOTAL_STRIDE).to(feat.device)
         frac = torch.tensor([0.0, 0.5, 1.0], device=feat.device)  # the box's sides and middle
