@@ -4,7 +4,7 @@ search features (B, C, H, W).
 The paper replaces the Siamese correlation by operators that fuse the template into the search features, then
 searches (Binary Channel Manipulation) which ones each branch keeps. Here, each operator's learned maps are 1x1
 convolutions with biases (no normalisation, so a small case computes by hand); the branch sums the operators it
-keeps, then batch norm and ReLU (`Matching`). g(z) is the template's global average (B, C, 1, 1).
+keeps, then group norm and ReLU (`Matching`). g(z) is the template's global average (B, C, 1, 1).
 - concatenation: W [x ; g(z)] (1x1 conv of 2C channels);
 - pointwise_addition: W (x + g(z));
 - pairwise_relation: each search location's dot products with the h w template locations (B, h w, H, W), then W
@@ -22,6 +22,8 @@ import math
 
 import torch
 from torch import nn
+
+from benchmarks.trackers.ocean.model import norm
 
 
 def pooled(z: torch.Tensor) -> torch.Tensor:
@@ -122,13 +124,13 @@ OPERATORS: dict[str, type[nn.Module]] = {
 
 
 class Matching(nn.Module):
-    """One branch's matching: the sum of its operators' outputs, batch norm, ReLU."""
+    """One branch's matching: the sum of its operators' outputs, group norm (ocean.model.norm), ReLU."""
 
     def __init__(self, names: tuple[str, ...], c: int, template_cells: int) -> None:
         super().__init__()
         self.names = names
         self.ops = nn.ModuleList([OPERATORS[n](c, template_cells) for n in names])
-        self.norm = nn.Sequential(nn.BatchNorm2d(c), nn.ReLU(inplace=True))
+        self.norm = nn.Sequential(norm(c), nn.ReLU(inplace=True))
 
     def forward(self, z: torch.Tensor, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Matched features (B, C, H, W) of template z (B or 1, C, h, w), search x, template mask (B or 1, 1, h, w)."""

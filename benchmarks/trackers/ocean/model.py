@@ -3,7 +3,8 @@ classification branch on a narrow Siamese trunk.
 
 Trunk: SiamFC's here (benchmarks/trackers/siamfc/model.py: unpadded, total stride 8, channels 24-32-64-64-64
 instead of Ocean's ResNet-50 to conv4_x with 256 adjusted channels): template 127 px -> 7x7 (Ocean crops its
-15x15 template map to the centre 7x7), search 255 px -> 23x23.
+15x15 template map to the centre 7x7), search 255 px -> 23x23. Group norm throughout, where Ocean has batch
+norm (see norm).
 
 Per branch (regression, classification) Ocean's feature combination: three parallel 3x3 convolutions of
 dilation (1,1), (1,2), (2,1) on the template and on the search features, each pair depth-wise correlated, the
@@ -61,12 +62,21 @@ class OceanConfig(TrunkConfig):
         return self.feature_size(self.search_size) - self.feature_size(self.exemplar_size) + 1
 
 
+def norm(c: int) -> nn.GroupNorm:
+    """Group normalisation of c channels in gcd(c, 8) groups.
+
+    Not batch norm: template and search crops differ in event density, so batch statistics of either differ from
+    the running ones a tracker uses (with batch norm, a network trained 150 steps had 2.5x its training loss on the
+    same pairs in eval mode); group norm computes the same in training and tracking."""
+    return nn.GroupNorm(math.gcd(c, 8), c)
+
+
 def trunk(channels: tuple[int, ...]) -> nn.Sequential:
-    """SiamFC's unpadded trunk (total stride 8) on one input channel."""
+    """SiamFC's unpadded trunk (total stride 8) on one input channel, group norm for batch norm (see norm)."""
     c = (1,) + tuple(channels)
 
     def block(i: int, k: int, stride: int = 1, relu: bool = True) -> list[nn.Module]:
-        layers = [nn.Conv2d(c[i], c[i + 1], k, stride), nn.BatchNorm2d(c[i + 1])]
+        layers = [nn.Conv2d(c[i], c[i + 1], k, stride), norm(c[i + 1])]
         return layers + [nn.ReLU(inplace=True)] if relu else layers
 
     return nn.Sequential(*block(0, 5, 2), nn.MaxPool2d(3, 2), *block(1, 3), nn.MaxPool2d(3, 2),
@@ -74,9 +84,9 @@ def trunk(channels: tuple[int, ...]) -> nn.Sequential:
 
 
 def conv_bn_relu(cin: int, cout: int, k: int = 3, dilation: tuple[int, int] = (1, 1)) -> nn.Sequential:
-    """A size-keeping convolution, batch norm, ReLU."""
+    """A size-keeping convolution, group norm, ReLU."""
     pad = (dilation[0] * (k // 2), dilation[1] * (k // 2))
-    return nn.Sequential(nn.Conv2d(cin, cout, k, padding=pad, dilation=dilation, bias=False), nn.BatchNorm2d(cout),
+    return nn.Sequential(nn.Conv2d(cin, cout, k, padding=pad, dilation=dilation, bias=False), norm(cout),
                          nn.ReLU(inplace=True))
 
 

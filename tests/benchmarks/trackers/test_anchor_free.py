@@ -137,9 +137,8 @@ def test_operators_by_hand():
     torch.testing.assert_close(tg(z, x, m).flatten(), x.flatten() * (1 + g))
     both = Matching(("concatenation", "film"), 1, 2).eval()
     both.ops[0], both.ops[1] = cat, film
-    bn = both.norm[0]
-    expected = torch.relu((torch.tensor([23.0, 26.0]) + torch.tensor([8.0, 23.0]) - bn.running_mean)
-                          / torch.sqrt(bn.running_var + bn.eps))
+    total = torch.tensor([23.0 + 8.0, 26.0 + 23.0])  # concatenation's plus FiLM's, normalised over the group
+    expected = torch.relu((total - total.mean()) / torch.sqrt(total.var(unbiased=False) + both.norm[0].eps))
     torch.testing.assert_close(both(z, x, m).flatten(), expected)
 
 
