@@ -31,7 +31,6 @@ from torch import nn
 from torch.nn import functional as F
 
 from benchmarks.trackers.ocean.boxes import decode, locations
-from benchmarks.trackers.siamfc.model import SiamFCConfig
 
 KIND = "ocean"
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -50,8 +49,12 @@ class TrunkConfig(BaseModel):
     search_size: int = Field(255, ge=39, le=1023)
 
     def feature_size(self, size: int) -> int:
-        """Side of the trunk's output for an input of `size` px (SiamFC's trunk)."""
-        return SiamFCConfig.feature_size(self, size)  # type: ignore[arg-type]  # the arithmetic only
+        """Side of the trunk's output for an input of `size` px (SiamFC's trunk: conv 5/2, pool 3/2, conv 3, pool 3/2,
+        three convs 3)."""
+        s = (size - 5) // 2 + 1
+        s = (s - 3) // 2 + 1 - 2
+        s = (s - 3) // 2 + 1
+        return s - 6
 
 
 class OceanConfig(TrunkConfig):
