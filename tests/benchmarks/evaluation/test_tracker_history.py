@@ -19,16 +19,34 @@ from synthetic import moving_square_file  # noqa: E402
 SEGMENTS = 8
 LIGHT = {"finetune_iters": 2, "n_candidates": 16, "energy_every": 0}  # SCTN-like trackers, kept quick
 TRACKERS = {"mil": {}, "csrt": {}, "kcf": {}, "rct": {}, "siamfc": {}, "sctn": {**LIGHT, "finetune_search_iters": 0},
-            "sctn_ann": LIGHT}
+            "sctn_ann": LIGHT, "ocean": {}, "automatch": {}}
+# trackers that ship no checkpoint run on an untrained network of theirs, saved as a checkpoint
+UNTRAINED = {"ocean": "benchmarks.trackers.ocean.model:Ocean",
+             "automatch": "benchmarks.trackers.automatch.model:AutoMatch"}
 
 
-def run_in_order(order: list[str], path: str) -> list[tuple[str, np.ndarray, str | None]]:
-    """(tracker, predicted boxes, error) of each tracker of `order` run in turn on `path` in this process."""
+@pytest.fixture(scope="module")
+def untrained(tmp_path_factory) -> dict[str, dict]:
+    """{tracker: {"checkpoint": path}} of an untrained network for each tracker of UNTRAINED."""
+    import torch
+
+    from benchmarks.training.registry import resolve
+    from sctn.checkpoint import save_checkpoint
+
+    d = tmp_path_factory.mktemp("untrained")
+    torch.manual_seed(0)
+    return {name: {"checkpoint": str(save_checkpoint(d / f"{name}.pt", resolve(build)(), {}, kind=name))}
+            for name, build in UNTRAINED.items()}
+
+
+def run_in_order(order: list[str], path: str, extra: dict | None = None) -> list[tuple[str, np.ndarray, str | None]]:
+    """(tracker, predicted boxes, error) of each tracker of `order` run in turn on `path` in this process; `extra`:
+    options added per tracker."""
     from benchmarks.evaluation.runner import run_one
 
     out = []
     for name in order:
-        r = run_one(name, path, max_segments=SEGMENTS, options=TRACKERS[name])
+        r = run_one(name, path, max_segments=SEGMENTS, options={**TRACKERS[name], **(extra or {}).get(name, {})})
         out.append((name, r.predictions, r.error))
     return out
 
@@ -45,14 +63,14 @@ def test_every_built_in_tracker_is_checked():
     assert sorted(TRACKERS) == sorted(BUILTIN)
 
 
-@pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"]],
-                         ids=["opencv-rct", "torch"])
-def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, names):
+@pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"],
+                                   ["ocean", "automatch"]], ids=["opencv-rct", "torch", "anchor-free"])
+def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, untrained, names):
     with ExitStack() as stack:
         spawn = get_context("spawn")
         pools = [stack.enter_context(ProcessPoolExecutor(1, mp_context=spawn)) for _ in range(len(names) + 1)]
-        shared = pools[0].submit(run_in_order, names + names[::-1], sequence)  # each twice, after all the others
-        alone = {n: p.submit(run_in_order, [n], sequence) for n, p in zip(names, pools[1:])}  # a fresh worker each
+        shared = pools[0].submit(run_in_order, names + names[::-1], sequence, untrained)  # each twice, after the others
+        alone = {n: p.submit(run_in_order, [n], sequence, untrained) for n, p in zip(names, pools[1:])}  # fresh workers
         runs = shared.result(timeout=600)
         first = {n: f.result(timeout=600)[0] for n, f in alone.items()}
     for name, boxes, error in runs:
