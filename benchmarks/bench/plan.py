@@ -19,7 +19,7 @@ from dvsot.core.errors import label
 
 DEFAULT_DATA = "data/dvsot21"
 # trackers with a `checkpoint` option
-CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc", "goturn", "siamrpn", "siammask")
+CHECKPOINT_TRACKERS = ("sctn", "sctn_ann", "siamfc", "goturn", "siamrpn", "siammask", "ocean", "automatch")
 
 
 @dataclass

@@ -16,7 +16,7 @@ from collections import defaultdict
 
 import torch
 
-from benchmarks.trackers.reference_nets import GOTURN, Ocean, SiameseNet, SiamMask, SiamRPN, count_siamese
+from benchmarks.trackers.reference_nets import GOTURN, AutoMatch, Ocean, SiameseNet, SiamMask, SiamRPN, count_siamese
 
 # Table 3 of the SCTN paper: MACs per frame
 PAPER_MACS = {"SiamRPN": 4.82e9, "SiamMask": 1.26e10}
@@ -27,7 +27,8 @@ def networks() -> list[tuple[str, SiameseNet, str]]:
     with torch.device("meta"):  # shapes only: no weights drawn
         return [("SiamRPN 127/255", SiamRPN(255), "SiamRPN"), ("SiamRPN 127/271", SiamRPN(271), "SiamRPN"),
                 ("SiamMask 127/255 (no refinement)", SiamMask(), "SiamMask"), ("GOTURN 227/227", GOTURN(), ""),
-                ("Ocean 127/255 (head widths assumed)", Ocean(), "")]
+                ("Ocean 127/255 (head widths assumed)", Ocean(), ""),
+                ("AutoMatch 128/256 (operators as recalled, head widths assumed)", AutoMatch(), "")]
 
 
 def block(name: str, depth: int = 2) -> str:

@@ -32,6 +32,8 @@ BUILTIN: dict[str, str] = {
     "goturn": "benchmarks.trackers.goturn.tracker",
     "siamrpn": "benchmarks.trackers.siamrpn.tracker",
     "siammask": "benchmarks.trackers.siammask.tracker",
+    "ocean": "benchmarks.trackers.ocean.tracker",
+    "automatch": "benchmarks.trackers.automatch.tracker",
     "rct": "benchmarks.trackers.rct",
     "csrt": "benchmarks.trackers.frame_based",
     "kcf": "benchmarks.trackers.frame_based",

@@ -22,6 +22,11 @@ as published:
   and summed (25x25x256); towers of four 3x3 convolutions of 256; regression 3x3 to 4 distances,
   classification 3x3 to 1; the object-aware branch's feature alignment counted as the 3x3 convolution
   it computes after sampling (256 channels, then 1x1 to 1): bilinear sampling is not a MAC.
+- AutoMatch (Zhang et al. 2021), as read from its paper with what it leaves open assumed: Ocean's trunk here
+  (ResNet-50 to conv4_x, output stride 8, adjust to 256) on its 128 / 256 px crops (template map 15x15, its centre
+  7x7 as the target's region; search map 31x31); per branch the operators of benchmarks/trackers/automatch (the
+  combination recalled as its searched one, operators.py's 1x1 maps at 256 channels, all template cells in the
+  target mask); Ocean's towers and heads above on the 31x31 matched maps.
 """
 
 from __future__ import annotations
@@ -258,6 +263,44 @@ class Ocean(SiameseNet):
         f = self.backbone(x)
         reg = self.reg_pred(self.reg_tower(self.combine(self.reg_combine, cached[1], f)))
         cls_feat = self.cls_tower(self.combine(self.cls_combine, cached[0], f))
+        return reg, self.cls_pred(cls_feat), self.align_pred(self.align(cls_feat))
+
+
+class AutoMatch(SiameseNet):
+    """AutoMatch (Zhang et al. 2021): operator matching per branch and Ocean's heads (module doc)."""
+
+    def __init__(self, search_size: int = 256, template_size: int = 128, channels: int = 256, tower: int = 4,
+                 crop: int = 7, reg_ops: tuple[str, ...] = ("pairwise_relation", "film"),
+                 cls_ops: tuple[str, ...] = ("simple_transformer", "transductive_guidance")):
+        super().__init__()
+        from benchmarks.trackers.automatch.operators import Matching
+
+        self.template_size, self.search_size, self.crop = template_size, search_size, crop
+        self.backbone = resnet50_os8()
+        self.reg_match = Matching(reg_ops, channels, crop * crop)
+        self.cls_match = Matching(cls_ops, channels, crop * crop)
+
+        def towers() -> nn.Sequential:
+            return nn.Sequential(*[conv_bn(channels, channels, 3, padding=1) for _ in range(tower)])
+
+        self.cls_tower, self.reg_tower = towers(), towers()
+        self.reg_pred = nn.Conv2d(channels, 4, 3, padding=1)
+        self.cls_pred = nn.Conv2d(channels, 1, 3, padding=1)
+        self.align = conv_bn(channels, channels, 3, padding=1)
+        self.align_pred = nn.Conv2d(channels, 1, 1)
+
+    def template(self, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The centre 7x7 of the template map and its target mask (all ones: the mask costs no MAC)."""
+        f = self.backbone(z)
+        lo = (f.shape[-1] - self.crop) // 2
+        f = f[:, :, lo:lo + self.crop, lo:lo + self.crop]
+        return f, f.new_ones(f.shape[0], 1, self.crop, self.crop)
+
+    def track(self, cached, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Distances (B, 4, 31, 31), classification (B, 1, 31, 31) and object-aware score (B, 1, 31, 31)."""
+        f = self.backbone(x)
+        reg = self.reg_pred(self.reg_tower(self.reg_match(cached[0], f, cached[1])))
+        cls_feat = self.cls_tower(self.cls_match(cached[0], f, cached[1]))
         return reg, self.cls_pred(cls_feat), self.align_pred(self.align(cls_feat))
 
 

@@ -141,3 +141,10 @@ for _name, _module, _cls in (("goturn", "goturn", "GOTURN"), ("siamrpn", "siamrp
         train=f"benchmarks.trackers.{_module}.train:train_{_name}",
         config=f"benchmarks.trackers.{_module}.train:{_cls}TrainConfig",
         tracker=f"benchmarks.trackers.{_module}.tracker:validation_tracker"))
+register_trainer("ocean", Trainer(
+    train="benchmarks.trackers.ocean.train:train_ocean", config="benchmarks.trackers.ocean.train:OceanTrainConfig",
+    tracker="benchmarks.trackers.ocean.tracker:trained_tracker"))
+register_trainer("automatch", Trainer(
+    train="benchmarks.trackers.automatch.train:train_automatch",
+    config="benchmarks.trackers.automatch.train:AutoMatchTrainConfig",
+    tracker="benchmarks.trackers.automatch.tracker:trained_tracker"))

@@ -19,10 +19,12 @@ from synthetic import moving_square_file  # noqa: E402
 SEGMENTS = 8
 LIGHT = {"finetune_iters": 2, "n_candidates": 16, "energy_every": 0}  # SCTN-like trackers, kept quick
 TRACKERS = {"mil": {}, "csrt": {}, "kcf": {}, "rct": {}, "siamfc": {}, "sctn": {**LIGHT, "finetune_search_iters": 0},
-            "sctn_ann": LIGHT, "goturn": {}, "siamrpn": {}, "siammask": {}}
+            "sctn_ann": LIGHT, "goturn": {}, "siamrpn": {}, "siammask": {}, "ocean": {}, "automatch": {}}
 UNTRAINED = {"goturn": "benchmarks.trackers.goturn.model:GOTURN",
              "siamrpn": "benchmarks.trackers.siamrpn.model:SiamRPN",
-             "siammask": "benchmarks.trackers.siammask.model:SiamMask"}  # they ship no checkpoint
+             "siammask": "benchmarks.trackers.siammask.model:SiamMask",
+             "ocean": "benchmarks.trackers.ocean.model:Ocean",
+             "automatch": "benchmarks.trackers.automatch.model:AutoMatch"}  # they ship no checkpoint
 
 
 def run_in_order(order: list[str], path: str, options: dict | None = None) -> list[tuple[str, np.ndarray, str | None]]:
@@ -66,7 +68,8 @@ def untrained(tmp_path_factory) -> dict:
 
 
 @pytest.mark.parametrize("names", [["mil", "csrt", "kcf", "rct"], ["siamfc", "sctn", "sctn_ann"],
-                                   ["goturn", "siamrpn", "siammask"]], ids=["opencv-rct", "torch", "trained-here"])
+                                   ["goturn", "siamrpn", "siammask"], ["ocean", "automatch"]],
+                         ids=["opencv-rct", "torch", "trained-here", "anchor-free"])
 def test_every_tracker_gives_the_same_boxes_twice_in_one_worker_and_alone(sequence, untrained, names):
     with ExitStack() as stack:
         spawn = get_context("spawn")

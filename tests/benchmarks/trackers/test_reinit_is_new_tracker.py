@@ -24,7 +24,9 @@ REINIT_AT = 4
 # trackers that ship no checkpoint: run on an untrained network of theirs (what is checked needs no training)
 UNTRAINED = {"goturn": "benchmarks.trackers.goturn.model:GOTURN",
              "siamrpn": "benchmarks.trackers.siamrpn.model:SiamRPN",
-             "siammask": "benchmarks.trackers.siammask.model:SiamMask"}
+             "siammask": "benchmarks.trackers.siammask.model:SiamMask",
+             "ocean": "benchmarks.trackers.ocean.model:Ocean",
+             "automatch": "benchmarks.trackers.automatch.model:AutoMatch"}
 
 
 @pytest.fixture(scope="module", autouse=True)

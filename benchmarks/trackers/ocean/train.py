@@ -1,0 +1,147 @@
+"""Training Ocean (and AutoMatch, through `train_anchor_free`) from scratch on ATSLTD frames of the training split.
+
+Data and validation as SiamFC's training (benchmarks/trackers/siamfc/train.py): the usable segments (a box of at
+least `min_box_px` a side), every 10th held out unless validation files are given; a pair is a template from one
+segment and a search region from another of the same sequence at most `max_gap` segments away, the search centre
+moved by up to `shift_px` crop px (Ocean's training shifts the target in the search region, so the regression
+sees every offset) and its extent scaled by up to 1 +- `stretch`. Loss, per pair (Ocean's): the IoU loss of the
+distances at the locations inside the target box, plus the classification and object-aware losses, each a
+binary cross-entropy over every location with positives (boxes.assign's ellipse) and negatives weighted half each.
+Adam.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+from pydantic import Field
+from torch import nn
+from torch.nn import functional as F
+
+from benchmarks.trackers.ocean.boxes import assign, decode, iou_loss, locations
+from benchmarks.trackers.ocean.crops import pair_crops
+from benchmarks.trackers.ocean.model import TOTAL_STRIDE, Ocean, OceanConfig
+from benchmarks.trackers.siamfc.crops import balanced_weights
+from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
+from dvsot.core.bounds import MAX_LEARNING_RATE
+from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
+
+
+class PairTrainConfig(TrainBudget):
+    """Settings of a Siamese anchor-free training: TrainBudget's, the pairs' gap and augmentation."""
+
+    epochs: int = Field(20, ge=1)
+    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
+    batch_segments: int = Field(8, ge=1)  # pairs per step
+    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
+    max_gap: int = Field(100, ge=1)  # segments between template and search
+    shift_px: float = Field(32.0, ge=0)
+    stretch: float = Field(0.05, ge=0)
+
+
+class OceanTrainConfig(PairTrainConfig):
+    """Ocean's training settings and network."""
+
+    network: OceanConfig = Field(default_factory=OceanConfig)
+
+
+def make_batch(items: list[tuple[int, int, int]], seqs: list[Frames], rng: np.random.Generator,
+               net, shift_px: float, stretch: float) -> tuple[torch.Tensor, ...]:
+    """Templates (B, 1, Sz, Sz), search crops (B, 1, Sx, Sx), search boxes and template boxes (B, 4) crop px of
+    (seq, template frame, search frame) items; `net` has exemplar_size, search_size (the network's config)."""
+    out = [pair_crops(seqs[s], ez, ex, rng, net.exemplar_size, net.search_size, shift_px, stretch)
+           for s, ez, ex in items]
+    z, x, bx, bz = (np.stack(v) for v in zip(*out))
+    return (torch.from_numpy(z[:, None].astype(np.float32)), torch.from_numpy(x[:, None].astype(np.float32)),
+            torch.from_numpy(bx.astype(np.float32)), torch.from_numpy(bz.astype(np.float32)))
+
+
+def anchor_free_loss(outputs: tuple[torch.Tensor, ...], boxes: torch.Tensor,
+                     search_size: int) -> tuple[torch.Tensor, dict]:
+    """Ocean's loss of (distances, logits, object-aware logits) on search crops of search_size px for target boxes
+    (B, 4) crop px; the sum and its three terms."""
+    dist, cls, aware = outputs
+    target, inside, labels = assign(boxes, locations(dist.shape[-1], search_size, TOTAL_STRIDE), TOTAL_STRIDE)
+    w = torch.from_numpy(balanced_weights(labels.numpy()))
+    reg = iou_loss(dist, target, inside)
+    c = F.binary_cross_entropy_with_logits(cls, labels, weight=w)
+    a = F.binary_cross_entropy_with_logits(aware, labels, weight=w)
+    return reg + c + a, {"reg_loss": reg.item(), "cls_loss": c.item(), "aware_loss": a.item()}
+
+
+def evaluate(model: nn.Module, batch: tuple[torch.Tensor, ...]) -> dict:
+    """Validation loss and the mean distance (search-crop px) of the best-scoring location's box centre from the
+    target's centre."""
+    z, x, bx, bz = batch
+    with torch.no_grad():
+        out = model(z, x, bz)
+        loss, parts = anchor_free_loss(out, bx, model.cfg.search_size)
+    dist, cls, aware = out
+    r = dist.shape[-1]
+    boxes = decode(dist, locations(r, model.cfg.search_size, TOTAL_STRIDE)).flatten(2)
+    best = (torch.sigmoid(cls) + torch.sigmoid(aware)).flatten(1).argmax(dim=1)
+    pick = boxes[torch.arange(len(best)), :, best]
+    centre = (pick[:, :2] + pick[:, 2:]) / 2
+    err = torch.linalg.norm(centre - (bx[:, :2] + bx[:, 2:]) / 2, dim=1)
+    return {"loss": float(loss), **parts, "centre_error_px": float(err.mean())}
+
+
+def train_anchor_free(build: Callable[[], nn.Module], name: str, files: list[Path], cfg: PairTrainConfig,
+                      progress: bool = True, val_files: list[Path] | None = None,
+                      val_score: Callable[[nn.Module], dict] | None = None) -> tuple[nn.Module, dict]:
+    """Train a new network `build()` (Ocean's interface: forward(z, x, z_box) -> distances, logits, object-aware
+    logits) on the dataset files; the model and its history (validation as in SiamFC's training)."""
+    rng = np.random.default_rng(cfg.seed)
+    torch.manual_seed(cfg.seed)
+    seqs = [load_frames(f, cfg.min_box_px) for f in files]
+    n_train = len(seqs)
+    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
+    train_items, val_items, pools = [], [], []
+    for s, fr in enumerate(seqs):
+        everything = np.arange(len(fr.segments))
+        if s >= n_train:
+            pools.append(everything)
+            val_items += [(s, int(k)) for k in everything]
+            continue
+        fit_ks, val_ks = (everything, everything[:0]) if val_files else held_out(everything)
+        pools.append(fit_ks)
+        val_items += [(s, int(k)) for k in val_ks]
+        train_items += [(s, int(k)) for k in fit_ks]
+    if not train_items:
+        raise ValueError("no training segments with a ground-truth box")
+    cfg.check_steps(len(train_items))
+    if val_files and not val_items:
+        raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
+    model = build()
+    net = model.cfg
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    val_rng = np.random.default_rng(cfg.seed + 1)
+    val_pick = spread(val_items, cfg.val_segments)
+    val_batch = None
+    if val_pick:
+        items = [(s, partner(val_rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in val_pick]
+        val_batch = make_batch(items, seqs, val_rng, net, cfg.shift_px, cfg.stretch)
+
+    def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
+        items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
+        z, x, bx, bz = make_batch(items, seqs, rng, net, cfg.shift_px, cfg.stretch)
+        return anchor_free_loss(model(z, x, bz), bx, net.search_size)
+
+    history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
+    validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
+    history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
+                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px" + score_note(m),
+                  history, progress, f"train {name}")
+    if val_batch is not None:
+        validate.score_last()
+    history.update(train_segments=len(train_items), val_segments=len(val_pick))
+    return model, history
+
+
+def train_ocean(files: list[Path], cfg: OceanTrainConfig, progress: bool = True, val_files: list[Path] | None = None,
+                val_score: Callable[[nn.Module], dict] | None = None) -> tuple[Ocean, dict]:
+    """Train a new Ocean on the given dataset files; the model and a history of metrics (train_anchor_free)."""
+    return train_anchor_free(lambda: Ocean(cfg.network), "ocean", files, cfg, progress, val_files, val_score)
