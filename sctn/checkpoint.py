@@ -7,15 +7,15 @@ import json
 import os
 import warnings
 import zipfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
 import torch
 from pydantic import ValidationError
 
+from dvsot.core.bounds import file_kind_problem
 from dvsot.core.errors import RunError, UserError, exception_line
 from dvsot.runtime.outputs import replacing, run_outputs
-from dvsot.core.bounds import file_kind_problem
 from sctn.network import SCTN, NetworkConfig
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
@@ -216,7 +216,9 @@ def read_checkpoint(path: str | os.PathLike, kind: str, label: str, article: str
     if fmt != f"{kind}-checkpoint":
         held = fmt.removesuffix("-checkpoint") if isinstance(fmt, str) and fmt.endswith("-checkpoint") else None
         if held:
-            raise UserError(f"{p}: holds a {held} model, not {article} {label} one (a checkpoint of the {held} tracker)")
+            raise UserError(
+                f"{p}: holds a {held} model, not {article} {label} one (a checkpoint of the {held} tracker)"
+            )
         raise UserError(f"{p}: not {article} {label} checkpoint")
     version = blob.get("version")
     if isinstance(version, bool) or version not in VERSIONS:

@@ -67,8 +67,13 @@ def count_synaptic_ops(model: SCTN, x: torch.Tensor) -> dict:
     counts = {name: float(s.sum()) / x.shape[0] for name, s in zip(LAYER_NAMES, spikes)}
     rates = {name: float(s.mean()) for name, s in zip(LAYER_NAMES, spikes)}
     total = sum(ops.values())
-    return {"ac_ops_per_sample": total, "ac_ops_by_layer": ops, "spikes_by_layer": counts, "firing_rate_by_layer": rates,
-            "energy_pj_per_sample": total * E_AC_PJ}
+    return {
+        "ac_ops_per_sample": total,
+        "ac_ops_by_layer": ops,
+        "spikes_by_layer": counts,
+        "firing_rate_by_layer": rates,
+        "energy_pj_per_sample": total * E_AC_PJ,
+    }
 
 
 def bias_additions(model: SCTN) -> float:

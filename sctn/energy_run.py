@@ -26,7 +26,8 @@ per initialisation + tracked segments x per segment, averaged over sequences). T
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from sctn.energy import E_AC_PJ, E_ACTIVATION_PJ, E_CLIF_UPDATE_PJ, E_MAC_PJ
 

@@ -54,7 +54,7 @@ class SearchParams(Strict):
         return data
 
     @model_validator(mode="after")
-    def _honoured(self) -> "SearchParams":
+    def _honoured(self) -> SearchParams:
         """Refuse, in one line naming the settings, a combination the tracker cannot honour."""
         problem = self.combination_problem()
         if problem:

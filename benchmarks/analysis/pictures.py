@@ -9,8 +9,8 @@ ground-truth and predicted boxes) are `dvsot.dataset.preview.write_preview`, whi
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 

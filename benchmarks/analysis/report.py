@@ -9,10 +9,10 @@ previous run there that this one does not write go in the same commit.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
-from typing import Mapping, Sequence
 
 from benchmarks.evaluation.protocol import SequenceResult
 

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.analysis.tables import write_text_atomic
 from benchmarks.evaluation.metrics import FAILURE_IOU
 from benchmarks.evaluation.protocol import SequenceResult
-from benchmarks.analysis.tables import write_text_atomic
 from benchmarks.evaluation.safe_names import file_stem
 
 

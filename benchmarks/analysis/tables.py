@@ -10,15 +10,14 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from benchmarks.evaluation.metrics import ALL, pooled, scores
 from benchmarks.evaluation.protocol import SequenceResult
 from benchmarks.evaluation.safe_names import latex_text, markdown_cell  # sequence and tracker names are free text
-
 
 
 @dataclass(frozen=True)
@@ -144,7 +143,9 @@ def terminal(summary: Mapping) -> str:
                 ar_row.append(f"{_f(cell['A'])}  {_f(cell['R'])}".center(col_w))
                 score_row.append(_f(cell["ARscore"]).center(col_w))
         speed, init = per_seq[ALL]["segments_per_s"], per_seq[ALL]["init_s"]
-        lines.append(markdown_cell(tracker).ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}")
+        lines.append(
+            markdown_cell(tracker).ljust(name_w) + " | " + " | ".join(ar_row) + f" | {speed:5.1f} | {init:.1f}"
+        )
         lines.append(" " * name_w + " | " + " | ".join(score_row) + " |       |")
     return "\n".join(lines)
 
@@ -186,17 +187,24 @@ def to_json(summary: Mapping) -> str:
 def to_markdown(summary: Mapping) -> str:
     """A Markdown table: each cell 'A / R / **ARscore**'."""
     seqs = _sequences(summary)
-    lines = ["| tracker | " + " | ".join(map(markdown_cell, seqs)) + " | seg/s | init s |", "|---|" + "---|" * (len(seqs) + 2)]
+    lines = [
+        "| tracker | " + " | ".join(map(markdown_cell, seqs)) + " | seg/s | init s |",
+        "|---|" + "---|" * (len(seqs) + 2),
+    ]
     for tracker, per_seq in summary.items():
         cells = []
         for s in seqs:
             c = per_seq.get(s)
             cells.append("" if c is None else "failed" if c["error"] else
                          f"{_f(c['A'])} / {_f(c['R'])} / **{_f(c['ARscore'])}**")
-        lines.append(f"| {markdown_cell(tracker)} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} | "
-                     f"{per_seq[ALL]['init_s']:.1f} |")
-    return "\n".join(lines) + ("\n\nEach cell: A / R / **ARscore** (b = 2). seg/s: tracked segments per second of "
-                               "update time; init s: seconds spent initialising (SCTN fine-tunes at each initialisation).\n")
+        lines.append(
+            f"| {markdown_cell(tracker)} | " + " | ".join(cells) + f" | {per_seq[ALL]['segments_per_s']:.1f} | "
+            f"{per_seq[ALL]['init_s']:.1f} |"
+        )
+    return "\n".join(lines) + (
+        "\n\nEach cell: A / R / **ARscore** (b = 2). seg/s: tracked segments per second of "
+        "update time; init s: seconds spent initialising (SCTN fine-tunes at each initialisation).\n"
+    )
 
 
 def to_latex(summary: Mapping) -> str:

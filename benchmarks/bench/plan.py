@@ -11,9 +11,9 @@ Messages name a setting by its parameter name (`trackers`, `data`, `out_dir`, `o
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 from dvsot.core.errors import label
 
@@ -47,8 +47,8 @@ class Plan:
 
 def _options(specs: list[str], trackers: list[str], labels: Mapping[str, str] | None = None) -> dict[str, dict]:
     """{tracker: {key: value}} from TRACKER.KEY=VALUE strings (values read as YAML, as in a scene file)."""
-    from dvsot.scene import yaml_value
     from dvsot.core.errors import UserError
+    from dvsot.scene import yaml_value
 
     out: dict[str, dict] = {}
     for spec in specs:
@@ -99,9 +99,8 @@ def _option_key(exc: BaseException, options: dict) -> str | None:
 
 def _option_error(name: str, options: dict, exc: Exception, specs: list[str], labels: Mapping[str, str] | None):
     """The one-line UserError for a tracker that its option values did not build."""
-    from dvsot.core.errors import UserError
-
     from benchmarks.evaluation.models import error_text
+    from dvsot.core.errors import UserError
 
     detail = error_text(exc)
     if not options or (name in CHECKPOINT_TRACKERS and set(options) == {"checkpoint"}):
@@ -170,7 +169,6 @@ def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str
     energy = energy and any(t in CHECKPOINT_TRACKERS for t in trackers)
     if protocol == "stream":
         from benchmarks.analysis.stream_tables import stream_files
-
         from benchmarks.bench.stream_options import stream_models
 
         models = stream_models(stream or {})
@@ -183,9 +181,9 @@ def run_files(trackers: Sequence[str], sequences: dict[str, Path], protocol: str
 def check_video(sequence: str, path: Path, labels: Mapping[str, str] | None = None) -> None:
     """UserError now if the preview of a sequence would hold more frames in memory than dvsot.core.bounds allows."""
     from benchmarks.analysis.report import VIDEO_SEGMENTS
-    from dvsot.dataset import Dataset
-    from dvsot.core.errors import UserError
     from dvsot.core.bounds import preview_problem
+    from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
 
     with Dataset(path) as ds:
         problem = preview_problem(ds.width, ds.height, min(ds.num_segments, VIDEO_SEGMENTS))
@@ -222,11 +220,11 @@ def plan_benchmark(trackers: Sequence[str], data: Sequence[str] | None = None, s
     import time
 
     from benchmarks.evaluation.models import energy_ann_models, load_sctn_checkpoint
-    from benchmarks.trackers import load_tracker_module, tracker_class
-    from dvsot.core.errors import UserError
     from benchmarks.evaluation.safe_names import file_stem
-    from dvsot.runtime.outputs import output_dir, run_dir
+    from benchmarks.trackers import load_tracker_module, tracker_class
     from dvsot.core.bounds import MAX_WORKERS, range_problem
+    from dvsot.core.errors import UserError
+    from dvsot.runtime.outputs import output_dir, run_dir
 
     labels = dict(labels or {})
     out_label, option_label = label("out_dir", labels), label("options", labels)

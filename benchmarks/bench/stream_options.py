@@ -3,7 +3,7 @@ tracking: latency models, query rate, window, predictive rows."""
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 from dvsot.core.errors import label
 

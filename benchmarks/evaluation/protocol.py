@@ -37,9 +37,9 @@ import numpy as np
 
 from benchmarks.evaluation.metrics import FAILURE_IOU
 from benchmarks.trackers.base import Tracker
-from dvsot.dataset.boxes import iou_xywh
-from dvsot.dataset import Dataset
 from dvsot.core.errors import UserError, exception_line
+from dvsot.dataset import Dataset
+from dvsot.dataset.boxes import iou_xywh
 
 MIN_BOX_PX = 1.0
 

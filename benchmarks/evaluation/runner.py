@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Iterable, Sequence
 
 from benchmarks.evaluation.protocol import SequenceResult
 
@@ -26,8 +26,8 @@ def run_one(tracker: str, path: str | Path, modules: Sequence[str] = (), max_seg
 
     from benchmarks.evaluation.protocol import run_sequence
     from benchmarks.trackers import get_tracker, load_tracker_module
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import exception_line
+    from dvsot.dataset import Dataset
 
     for m in modules:
         load_tracker_module(m)
@@ -59,8 +59,8 @@ def _run_stream(tracker: str, path, modules: Sequence[str], max_segments: int | 
     from benchmarks.evaluation.latency import parse_latency
     from benchmarks.evaluation.stream import DEFAULT_QUERY_HZ, StreamSequence, run_sequences
     from benchmarks.trackers import get_tracker, load_tracker_module, tracker_class
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import exception_line
+    from dvsot.dataset import Dataset
 
     for m in modules:
         load_tracker_module(m)
@@ -84,8 +84,8 @@ def find_sequences(specs: str | Path | Sequence[str | Path], split: str | None =
     ground truth and a name of its own (they name the tables' columns)."""
     import numpy as np
 
-    from dvsot.dataset import Dataset, find_datasets
     from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset, find_datasets
 
     out: dict[str, Path] = {}
     for f in find_datasets(specs, split=split):

@@ -181,8 +181,8 @@ def format_table(summary: dict) -> str:
 def _ci_files(tmp: Path) -> tuple[list[Path], list[Path]]:
     """Render the two tiny CI scenes into tmp: ([train file], [test file])."""
     from benchmarks.experiments.regression import REFERENCE_DIR
-    from dvsot.scene import load_scene
     from dvsot.pipeline.generate import generate
+    from dvsot.scene import load_scene
 
     files = {}
     for name in ("ci_train", "ci_test"):
@@ -234,8 +234,8 @@ def _run(phases: list[list[tuple]], args: tuple, scheduler: str | None, retries:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line of the ablation: 0, or 1 if a run finally failed (with --scheduler)."""
-    from dvsot.runtime.dask_tasks import parse_scheduler
     from dvsot.dataset import find_datasets
+    from dvsot.runtime.dask_tasks import parse_scheduler
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--train", nargs="+", help="training files / dirs / globs (split train)")

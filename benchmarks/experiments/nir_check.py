@@ -62,6 +62,7 @@ def reference(files: list[Path], out: Path, checkpoint: str | None, segments: in
               seed: int) -> dict:
     """dvsot's outputs on the candidates of `segments` labelled segments per file, the exported graphs and the
     numpy simulator's agreement; written to out/reference.npz, out/sctn_{exact,euler}.nir, out/nir_sim.json."""
+    import nir
     import torch
 
     from dvsot.dataset import Dataset
@@ -70,8 +71,6 @@ def reference(files: list[Path], out: Path, checkpoint: str | None, segments: in
     from sctn.nir_export import export_nir, target_neuron
     from sctn.nir_sim import run_graph
     from sctn.samples import TRACK, propose
-
-    import nir
 
     model, _ = load_checkpoint(checkpoint)
     xs = []

@@ -38,9 +38,9 @@ def run_ci_benchmark(workdir: Path, seed: int = 0) -> dict:
     from benchmarks.evaluation.protocol import run_sequence
     from benchmarks.trackers import get_tracker
     from benchmarks.trackers.sctn import SCTNBenchTracker
-    from dvsot.scene import load_scene
     from dvsot.dataset import Dataset
     from dvsot.pipeline.generate import generate
+    from dvsot.scene import load_scene
     from sctn.tracker import SCTNTracker
     from sctn.training.snn import TrainConfig, train
 
@@ -104,7 +104,9 @@ def compare(reference: dict, current: dict, tolerance: dict = TOLERANCE, spread:
 def main(argv: list[str] | None = None) -> int:
     """Run the CI benchmark; compare with (or rewrite) the reference."""
     parser = argparse.ArgumentParser(description="CI regression of tracking metrics")
-    parser.add_argument("--update-reference", action="store_true", help="rewrite benchmarks/experiments/reference/ci_metrics.json")
+    parser.add_argument(
+        "--update-reference", action="store_true", help="rewrite benchmarks/experiments/reference/ci_metrics.json"
+    )
     parser.add_argument("--seeds", type=int, default=5, help="training seeds for the spread (with --update-reference)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="dvsot-ci-") as tmp:

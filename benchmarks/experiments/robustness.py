@@ -43,11 +43,12 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
     """The kept frames of a sequence through the simulator with EventParams values into a new dataset file (same
     times and boxes; the sequence's event seed unless `seed` is given); {events, noise_events, noise_hz
     (measured, per pixel per second), duration_s, seed}."""
+    from dvsot.core.errors import UserError
     from dvsot.dataset import Dataset
     from dvsot.events import EventParams, EventSimulator
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR
+    from dvsot.pipeline.kept_frames import FrameDigest, frames_problem, load_frame
     from dvsot.pipeline.sequence import write_sequence
-    from dvsot.core.errors import UserError
-    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest, frames_problem, load_frame
     from dvsot.runtime.outputs import readable
 
     with Dataset(sequence) as ds:
@@ -90,9 +91,10 @@ def resimulate(sequence: str | Path, frames_dir: str | Path, output: str | Path,
 def check_frames(sequence: str | Path, frames_dir: str | Path) -> list[Path]:
     """The kept frames of a sequence, checked before any work: one per render sample, each a numeric frame, and
     together the frames whose digest the sequence recorded (files written before the digest: not checkable)."""
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import UserError
-    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, frames_problem
+    from dvsot.dataset import Dataset
+    from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR
+    from dvsot.pipeline.kept_frames import frames_problem
 
     with Dataset(sequence) as ds:
         samples, recorded = len(ds.boxes().t), ds.attrs.get(KEPT_DIGEST_ATTR)
@@ -109,8 +111,8 @@ def check_frames(sequence: str | Path, frames_dir: str | Path) -> list[Path]:
 def kept_frames(sequence: str | Path, frames_dir: str | Path, samples: int | None = None) -> list[Path]:
     """The kept frames of a sequence (FRAMES_DIR/NNNNNN.npy, in order); UserError unless there is one per render
     sample of the sequence (`samples`, else read from its /boxes)."""
-    from dvsot.core.errors import UserError
     from dvsot.core.bounds import file_kind_problem
+    from dvsot.core.errors import UserError
 
     problem = file_kind_problem(frames_dir)
     if problem != "is a directory":
@@ -191,7 +193,6 @@ def sweep(sequence: str | Path, frames_dir: str | Path, trackers: list[str], pre
     from benchmarks.evaluation.metrics import scores
     from benchmarks.evaluation.runner import benchmark
     from dvsot.events import EventParams
-
     from dvsot.runtime.outputs import readable
 
     out_dir = Path(out_dir)
@@ -238,8 +239,8 @@ def run(sequence: str | Path, frames_dir: str | Path, trackers: list[str], prese
 
 def check_segment(sequence: str | Path, segment: int, flag: str) -> None:
     """UserError naming the flag unless `segment` is a segment of the dataset file `sequence`."""
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
 
     with Dataset(sequence) as ds:
         if not 0 <= segment < ds.num_segments:
@@ -337,7 +338,9 @@ def noise_rate(text: str) -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is neither a rate (events per pixel per second) nor 'preset'") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is neither a rate (events per pixel per second) nor 'preset'"
+        ) from None
     if not 0 <= value < float("inf"):
         raise argparse.ArgumentTypeError(f"{text}: a shot-noise rate is finite and >= 0 events per pixel per second")
     return value

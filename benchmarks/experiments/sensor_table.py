@@ -31,9 +31,9 @@ import csv
 import io
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 MANIFEST = "run.json"  # the run's manifest in OUT (dvsot.runtime.outputs)
 TABLE_FILES = ("table.md", "table.csv")
@@ -110,8 +110,8 @@ def kept_frame_dirs(sequences: dict[str, Path], frames: str | Path) -> dict[str,
 def recorded_settings(sequence: str | Path) -> dict:
     """The simulator settings a dataset file was made with (its `simulator` attribute: EventParams' fields, thresholds
     in log units, rates in Hz, times in microseconds); UserError naming the file if it records none."""
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
     from dvsot.events import EventParams
 
     with Dataset(sequence) as ds:
@@ -129,7 +129,8 @@ def run(trackers: Sequence[str], presets: Sequence[str], frames: str | Path, out
         picture: tuple[str, int] | None = None, progress: bool = False) -> SensorTable:
     """The whole table into out_dir as one run (see the module docstring); UserError before any work on bad input."""
     from benchmarks.bench.plan import plan_benchmark, resolve_data, run_benchmark, run_files
-    from benchmarks.experiments.robustness import check_segment, picture as draw_picture, resimulate
+    from benchmarks.experiments.robustness import check_segment, resimulate
+    from benchmarks.experiments.robustness import picture as draw_picture
     from dvsot.core.errors import UserError
     from dvsot.events import EventParams
     from dvsot.runtime.outputs import owned_run, readable

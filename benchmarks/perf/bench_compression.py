@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from dvsot.dataset import COMPRESSIONS, Dataset, DatasetWriter
 from dvsot.core.errors import UserError
+from dvsot.dataset import COMPRESSIONS, Dataset, DatasetWriter
 
 
 def rewrite(src: Path, dst: Path, compression: str | None) -> None:
@@ -80,8 +80,14 @@ def main() -> None:
                 wrote = time.perf_counter() - start
                 size = dst.stat().st_size
                 totals[c] += size
-                full, seg = best_of(args.repeat, lambda: full_scan(dst)), best_of(args.repeat, lambda: segment_scan(dst))
-                print(f"| {src.stem} | {n:,} | {c or 'none'} | {size / 1e6:.2f} | {wrote:.3f} | {full:.3f} | {seg:.3f} |", flush=True)
+                full, seg = (
+                    best_of(args.repeat, lambda: full_scan(dst)),
+                    best_of(args.repeat, lambda: segment_scan(dst)),
+                )
+                print(
+                    f"| {src.stem} | {n:,} | {c or 'none'} | {size / 1e6:.2f} | {wrote:.3f} | {full:.3f} | {seg:.3f} |",
+                    flush=True,
+                )
                 dst.unlink()
     print()
     print("total MB: " + ", ".join(f"{c or 'none'} {totals[c] / 1e6:.2f}" for c in names))

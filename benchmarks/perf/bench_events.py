@@ -51,11 +51,19 @@ def time_case(frames: list[np.ndarray], params: EventParams, dt_us: int) -> dict
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
     pairs = len(frames) - 1
     fired = sum(np.unique(f).size for f in fired) / pairs  # outside the timed loop
-    return {"frame_pairs": pairs, "wall_s": round(wall, 3), "frame_pairs_per_s": round(pairs / wall, 1),
-            "events": events, "events_per_s": round(events / wall),
-            # CPU time of this process: what a loaded machine's other work does not inflate as much
-            "cpu_s": round(cpu, 3), "frame_pairs_per_cpu_s": round(pairs / cpu, 1), "events_per_cpu_s": round(events / cpu), "events_per_pair": round(events / pairs),
-            "fired_pixel_fraction": round(fired / (W * H), 4)}
+    return {
+        "frame_pairs": pairs,
+        "wall_s": round(wall, 3),
+        "frame_pairs_per_s": round(pairs / wall, 1),
+        "events": events,
+        "events_per_s": round(events / wall),
+        # CPU time of this process: what a loaded machine's other work does not inflate as much
+        "cpu_s": round(cpu, 3),
+        "frame_pairs_per_cpu_s": round(pairs / cpu, 1),
+        "events_per_cpu_s": round(events / cpu),
+        "events_per_pair": round(events / pairs),
+        "fired_pixel_fraction": round(fired / (W * H), 4),
+    }
 
 
 def repeated(frames: list[np.ndarray], params: EventParams, dt_us: int, runs: int) -> dict:

@@ -38,8 +38,8 @@ def _setting(text: str) -> tuple[str, object]:
 
 
 def main() -> None:
-    from dvsot.scene import load_scene
     from dvsot.pipeline.generate import generate
+    from dvsot.scene import load_scene
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", default=str(ROOT / "blender_scenes" / "quickstart.yaml"))
@@ -82,8 +82,10 @@ def main() -> None:
         print("| scene | resolution | settings | frames | s/sample | s/sample after first | frames/sim s | wall s |")
         print("|---|---|---|---|---|---|---|---|")
         extra = ", ".join(f"{k}={v}" for k, v in summary["settings"].items()) or "default"
-        print(f"| {summary['name']} | {summary['resolution']} | {extra} | {summary['frames']} | "
-              f"{summary['s_per_frame']} | {summary['s_per_frame_after_first']} | {summary['frames_per_simulated_s']} | {summary['wall_s']} |")
+        print(
+            f"| {summary['name']} | {summary['resolution']} | {extra} | {summary['frames']} | "
+            f"{summary['s_per_frame']} | {summary['s_per_frame_after_first']} | {summary['frames_per_simulated_s']} | {summary['wall_s']} |"
+        )
 
 
 def _compare_labels(cfg, repeat: int) -> dict:

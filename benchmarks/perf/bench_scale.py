@@ -102,8 +102,8 @@ def ceiling(pool: ProcessPoolExecutor, n: int = 3_000_000) -> float:
 def _render(template_text: str, repeats: int, cpus: set[int] | None = None) -> float:
     """Seconds this process takes to generate the template's first variant `repeats` times (render.threads 1),
     after one untimed run (bpy's import and Cycles' first render); bound to `cpus` if given, else to every CPU."""
-    from dvsot.scene import parse_scene
     from dvsot.runtime.cpu_shares import pin_process
+    from dvsot.scene import parse_scene
 
     pin_process(cpus if cpus is not None else os.sched_getaffinity(os.getppid()))
     from dvsot.pipeline.generate import generate
@@ -166,8 +166,8 @@ def summarise(runs: list[dict], variants: int) -> dict:
 def measure(variants: int, workers: list[int], modes: list[str], repeats: int, size: tuple[int, int],
             duration: float, tmp: Path) -> dict:
     """Start and warm one LocalCluster per worker count, then run the interleaved rounds; every figure."""
-    from dvsot.runtime.dask_tasks import Cluster
     from dvsot.pipeline.scene_task import warm_up_scene
+    from dvsot.runtime.dask_tasks import Cluster
     from dvsot.runtime.warm_up import warm_workers
 
     template = tmp / "tiny.yaml"
@@ -207,8 +207,8 @@ def measure(variants: int, workers: list[int], modes: list[str], repeats: int, s
 
 def project(n_sequences: int = 1000, machines: tuple = (1, 4, 16, 64), cores_per_machine: int = 2) -> dict:
     """Per-sequence cost of the shipped DVSOT21-like template from one short full-size render; the projection."""
-    from dvsot.scene import parse_scene
     from dvsot.pipeline.generate import generate, sample_times
+    from dvsot.scene import parse_scene
     from dvsot.scene.templates import draw_variants, read_template
 
     tpl = read_template(ROOT / "blender_scenes" / "templates" / "dvsot21_random.yaml")
@@ -221,10 +221,16 @@ def project(n_sequences: int = 1000, machines: tuple = (1, 4, 16, 64), cores_per
     setup = s["wall_s"] - (s["frames"] - 1) * per_frame  # scene build, bake, first render, file
     mean_frames = sum(frames) / len(frames)
     seq_s = setup + mean_frames * per_frame  # one sequence on one machine using all its cores
-    return {"mean_frames_per_sequence": round(mean_frames), "s_per_frame_640x480": per_frame,
-            "setup_s": round(setup, 2), "sequence_s_one_machine": round(seq_s, 1),
-            "hours_for": {f"{n_sequences} on {m} machine{'s' if m > 1 else ''}": round(n_sequences * seq_s / m / 3600, 1)
-                          for m in machines}}
+    return {
+        "mean_frames_per_sequence": round(mean_frames),
+        "s_per_frame_640x480": per_frame,
+        "setup_s": round(setup, 2),
+        "sequence_s_one_machine": round(seq_s, 1),
+        "hours_for": {
+            f"{n_sequences} on {m} machine{'s' if m > 1 else ''}": round(n_sequences * seq_s / m / 3600, 1)
+            for m in machines
+        },
+    }
 
 
 def _size(text: str) -> tuple[int, int]:

@@ -98,7 +98,9 @@ def main() -> None:
                         if done.returncode != 0:
                             raise SystemExit(f"{name} failed: {done.stderr.strip()[-400:]}")
                         runs.setdefault(name, []).append(json.loads(done.stdout.strip().splitlines()[-1]))
-    print(json.dumps({"frames": args.frames, "runs": args.runs, "load_average": [round(v, 2) for v in os.getloadavg()]}))
+    print(
+        json.dumps({"frames": args.frames, "runs": args.runs, "load_average": [round(v, 2) for v in os.getloadavg()]})
+    )
     for name, rs in runs.items():  # one line a variant
         print(json.dumps({name: {"cpu_ms_per_frame": round(statistics.median(r["ms"] for r in rs), 2),
                                  "range": [round(min(r["ms"] for r in rs), 2), round(max(r["ms"] for r in rs), 2)],

@@ -164,10 +164,23 @@ def main() -> None:
                 env = _tree_env(tree)
                 # run from the temp directory: `python -m` puts the working directory first on sys.path, so
                 # from inside a checkout its dvsot, not the tree's, would be timed
-                wall, cpu, out = _timed([sys.executable, "-m", "dvsot.cli", "simulate", str(Path(args.frames).resolve()),
-                                         "--timestamps", str(Path(args.timestamps).resolve()), "-o",
-                                         f"{tmp}/out{k}.h5", "--quiet", *(["--preset", preset] if preset else [])],
-                                        env, cwd=tmp)
+                wall, cpu, out = _timed(
+                    [
+                        sys.executable,
+                        "-m",
+                        "dvsot.cli",
+                        "simulate",
+                        str(Path(args.frames).resolve()),
+                        "--timestamps",
+                        str(Path(args.timestamps).resolve()),
+                        "-o",
+                        f"{tmp}/out{k}.h5",
+                        "--quiet",
+                        *(["--preset", preset] if preset else []),
+                    ],
+                    env,
+                    cwd=tmp,
+                )
                 walls.setdefault(name, []).append(wall)
                 cpus.setdefault(name, []).append(cpu)
                 events[name] = json.loads(out.strip().splitlines()[-1])["events"]

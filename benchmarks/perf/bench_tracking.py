@@ -66,8 +66,8 @@ def bias_free(model):
 
 def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "bilinear",
               repeat: int = 1, tracker_cls=None, boxes_out: list | None = None) -> dict:
-    from dvsot.dataset.boxes import iou_xywh
     from dvsot.dataset import Dataset
+    from dvsot.dataset.boxes import iou_xywh
     from sctn.tracker import SCTNTracker
 
     tracker_cls = tracker_cls or SCTNTracker
@@ -104,8 +104,8 @@ def time_ann_trackers(path: Path, segments: int, repeat: int, twin_checkpoint: s
                       siamfc_checkpoint: str | None = None) -> list[dict]:
     """Segments/s of sctn_ann and siamfc on one thread (best of `repeat` runs; init, i.e. fine-tuning, excluded)."""
     from benchmarks.trackers import get_tracker
-    from dvsot.dataset.boxes import iou_xywh
     from dvsot.dataset import Dataset
+    from dvsot.dataset.boxes import iou_xywh
 
     torch.set_num_threads(1)
     with Dataset(path) as ds:

@@ -74,7 +74,9 @@ def time_steps(model, batches, reference: bool, steps: int, repeat: int) -> dict
 
 def budget_steps(train_config: dict) -> int:
     """Optimiser steps of a training budget, given enough segments: epochs x (segments per epoch // per step)."""
-    return int(train_config["epochs"]) * (int(train_config["segments_per_epoch"]) // int(train_config["batch_segments"]))
+    return int(train_config["epochs"]) * (
+        int(train_config["segments_per_epoch"]) // int(train_config["batch_segments"])
+    )
 
 
 def full_training(meta: dict, data_dir: Path, threads: int) -> dict:
@@ -86,7 +88,9 @@ def full_training(meta: dict, data_dir: Path, threads: int) -> dict:
     files = [data_dir / f"{n}.h5" for n in names]
     missing = [str(f) for f in files if not f.is_file()]
     if not names or missing:
-        raise SystemExit(f"{data_dir}: --full needs the checkpoint's training files, missing: {missing or 'its data list'}")
+        raise SystemExit(
+            f"{data_dir}: --full needs the checkpoint's training files, missing: {missing or 'its data list'}"
+        )
     cfg = TrainConfig(**meta["train_config"])
     torch.set_num_threads(threads)
     start, cpu = time.perf_counter(), time.process_time()

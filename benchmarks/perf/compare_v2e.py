@@ -95,8 +95,8 @@ def inputs(width: int, height: int, n_frames: int) -> tuple[dict, dict, dict]:
 
 def run_dvsot(frames: np.ndarray, t_s: np.ndarray, values: dict) -> np.ndarray:
     """dvsot's events on 8-bit frames (linear I = DN / 255) as rows (t s, x, y, p +-1)."""
-    from dvsot.events.batch import EventBatch
     from dvsot.events import EventParams, EventSimulator
+    from dvsot.events.batch import EventBatch
 
     sim = EventSimulator(frames.shape[2], frames.shape[1], EventParams(**values), seed=1)
     batches = [sim.step(f.astype(np.float32) / np.float32(255.0), int(round(t * 1e6))) for f, t in zip(frames, t_s)]

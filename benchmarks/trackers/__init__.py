@@ -20,7 +20,7 @@ then `dvsot bench --tracker-module mypackage.mymodule --tracker centre`.
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from collections.abc import Callable
 
 from dvsot.core.errors import UserError
 
@@ -68,7 +68,7 @@ def tracker_class(name: str) -> type:
     return _REGISTRY[name]
 
 
-def get_tracker(name: str, **options) -> "Tracker":  # noqa: F821 - imported lazily
+def get_tracker(name: str, **options) -> Tracker:  # noqa: F821 - imported lazily
     """A new instance of the tracker registered under `name`."""
     return tracker_class(name)(**options)
 

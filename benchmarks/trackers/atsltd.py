@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dvsot.events import EventBatch
 from dvsot.core.defaults import SEGMENT_US
+from dvsot.events import EventBatch
 
 
 def atsltd_frame(events: EventBatch, width: int, height: int, window_us: int = SEGMENT_US) -> np.ndarray:

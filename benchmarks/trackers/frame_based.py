@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import ctypes
 import threading
-from typing import Callable
+from collections.abc import Callable
 
 import cv2
 import numpy as np
 
-from benchmarks.trackers.atsltd import atsltd_frame_bgr
 from benchmarks.trackers import register
+from benchmarks.trackers.atsltd import atsltd_frame_bgr
 from benchmarks.trackers.base import Tracker
 from dvsot.dataset import Segment
 

@@ -9,8 +9,8 @@ segment; its partner (the template segment) is drawn by the model's trainer. The
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 import torch

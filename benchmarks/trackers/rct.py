@@ -47,8 +47,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.rct_clusters import ClusterSet
-from dvsot.dataset.boxes import iou_xywh
 from dvsot.dataset import Segment
+from dvsot.dataset.boxes import iou_xywh
 from dvsot.events import EventBatch
 
 __all__ = ["ClusterSet", "RCTParams", "RCTTracker"]

@@ -8,8 +8,8 @@ from pydantic import Field
 
 from benchmarks.trackers import register
 from benchmarks.trackers.base import Tracker
-from dvsot.dataset import Segment
 from dvsot.core.strict import Int, Strict
+from dvsot.dataset import Segment
 from sctn.params import SCTNParams
 
 BENCH_FIELDS = {"checkpoint", "energy_every"}  # the benchmark's own options; the others are the tracker's
@@ -39,11 +39,13 @@ class SCTNBenchTracker(Tracker):
         from sctn.tracker import SCTNTracker
 
         opts = SCTNOptions(**options)
-        self.tracker = SCTNTracker(opts.checkpoint, SCTNParams(**opts.model_dump(exclude=BENCH_FIELDS, exclude_unset=True)))
+        self.tracker = SCTNTracker(
+            opts.checkpoint, SCTNParams(**opts.model_dump(exclude=BENCH_FIELDS, exclude_unset=True))
+        )
         self._start(opts.energy_every)
 
     @classmethod
-    def wrap(cls, tracker, energy_every: int = 0) -> "SCTNBenchTracker":
+    def wrap(cls, tracker, energy_every: int = 0) -> SCTNBenchTracker:
         """The benchmark interface around an SCTNTracker already built (e.g. on a model just trained)."""
         self = cls.__new__(cls)
         self.tracker = tracker

@@ -10,8 +10,8 @@ benchmarks.trackers.reference_nets: parameters and multiply-accumulates per trac
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import torch
 

@@ -9,8 +9,9 @@ when a run uses them, so reading the registry (the command's --help) imports no 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 from dvsot.core.errors import UserError, label
 
@@ -89,7 +90,10 @@ def model_settings(model: str, given: Mapping[str, Any], labels: Mapping[str, st
 
 def _network(settings: dict, labels: Mapping[str, str] | None) -> dict:
     """The layer sizes and deviations of SCTN's network (and its twin's) from the settings, checked."""
-    from dvsot.core.bounds import MAX_TAIL_STEPS, range_problem  # here: dvsot.core.bounds imports numpy, --help must not
+    from dvsot.core.bounds import (  # here: dvsot.core.bounds imports numpy, --help must not
+        MAX_TAIL_STEPS,
+        range_problem,
+    )
 
     tail = settings.pop("tail_steps", 0)
     problem = range_problem(label("tail_steps", labels), tail, 0, MAX_TAIL_STEPS, "steps of 1 ms")

@@ -9,12 +9,12 @@ validation apart from training, and the checkpoint's path (no input overwritten,
 from __future__ import annotations
 
 import os
-from typing import Any, Callable, Mapping, Sequence
-
-from dvsot.core.errors import RunError, UserError, label
-from dvsot.core.bounds import MAX_THREADS, range_problem
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 from benchmarks.training.registry import configure, model_settings, resolve, trainer
+from dvsot.core.bounds import MAX_THREADS, range_problem
+from dvsot.core.errors import RunError, UserError, label
 
 DEFAULT_DATA = ("data/dvsot21",)
 

@@ -15,8 +15,8 @@ if sys.argv and (sys.argv[0] == "-m" or os.path.basename(sys.argv[0]) == "dvsot"
     interrupts.at_startup()  # a signal during the imports below ends it with one line, not an import's traceback
 
 from dvsot import __version__  # noqa: E402
-from dvsot.core.errors import RunError, UserError
 from dvsot.cli.flags import flag_labels
+from dvsot.core.errors import RunError, UserError
 
 # name -> module; the module's docstring's first line is the help text.
 COMMANDS: dict[str, str] = {

@@ -36,8 +36,10 @@ def _text(info: dict) -> str:
              f"{info['segments_with_box']} with a box ({100 * info['box_coverage']:.1f}%)"]
     if "segments_absent" in info:
         median = info["visibility_median"]
-        lines.append(f"  visibility     median {'-' if median is None else f'{median:.2f}'} of the target's pixels seen, "
-                     f"{info['segments_absent']} segments with the target absent")
+        lines.append(
+            f"  visibility     median {'-' if median is None else f'{median:.2f}'} of the target's pixels seen, "
+            f"{info['segments_absent']} segments with the target absent"
+        )
     if "segments_truncated" in info:
         kept = [what for key, what in (("per_object_truth", "every object's boxes"), ("mask_samples", "object masks"))
                 if key in info]
@@ -53,7 +55,9 @@ def _text(info: dict) -> str:
                      f"segments matched to one (only those are scored)")
     if "box_width_px" in info:
         w, h = info["box_width_px"], info["box_height_px"]
-        lines.append(f"  box size       w {w[0]:.0f}/{w[1]:.0f}/{w[2]:.0f}  h {h[0]:.0f}/{h[1]:.0f}/{h[2]:.0f} px (min/median/max)")
+        lines.append(
+            f"  box size       w {w[0]:.0f}/{w[1]:.0f}/{w[2]:.0f}  h {h[0]:.0f}/{h[1]:.0f}/{h[2]:.0f} px (min/median/max)"
+        )
     if "simulator" in info and isinstance(info["simulator"], dict):
         lines.append("  simulator      " + ", ".join(f"{k}={v}" for k, v in info["simulator"].items()))
     if "seed" in info:

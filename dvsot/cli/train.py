@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot train`."""
     from benchmarks.training.registry import TRAINERS

@@ -3,7 +3,7 @@ the one formatter of any exception as one line."""
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 
 class UserError(ValueError):

@@ -8,10 +8,10 @@ composed node graph (so before anything is constructed); node marks give every f
 
 from __future__ import annotations
 
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
-from ruamel.yaml import YAML
-from ruamel.yaml import nodes, tokens
+from ruamel.yaml import YAML, nodes, tokens
 from ruamel.yaml.error import MarkedYAMLError, YAMLError
 
 __all__ = ["MappingNode", "SequenceNode", "ScalarNode", "YAMLError", "MarkedYAMLError", "compose", "load",

@@ -9,8 +9,8 @@ import h5py
 import numpy as np
 
 from dvsot.core import bounds
-from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
 from dvsot.core.errors import exception_line
+from dvsot.dataset.format import LAYOUT, REQUIRED, SAME_ROWS
 
 _KIND_WORDS = {"ui": "integers", "uib": "integers or booleans", "uif": "numbers", "S": "fixed-length byte strings",
                "f": "floats"}
@@ -192,8 +192,10 @@ def truth_problem(f: h5py.File, load) -> str | None:
     down = np.flatnonzero(seg_t[1:] <= seg_t[:-1])
     if len(down):
         i = int(down[0]) + 1
-        return (f"/segments/t is {int(seg_t[i])} us at segment {i}, not after segment {i - 1}'s {int(seg_t[i - 1])} us; "
-                "segment end times increase")
+        return (
+            f"/segments/t is {int(seg_t[i])} us at segment {i}, not after segment {i - 1}'s {int(seg_t[i - 1])} us; "
+            "segment end times increase"
+        )
     for group in ("boxes", "segments"):
         if f"{group}/xywh_visible" not in f:
             continue

@@ -15,10 +15,10 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from dvsot.core.bounds import preview_problem
 from dvsot.core.errors import UserError
 from dvsot.events import EventBatch
 from dvsot.runtime.outputs import replacing
-from dvsot.core.bounds import preview_problem
 
 GT_COLOUR = (40, 170, 40)  # RGB
 PALETTE = [(230, 120, 0), (150, 40, 200), (0, 150, 200), (200, 0, 80), (120, 90, 20), (110, 110, 110)]

@@ -5,23 +5,44 @@ from __future__ import annotations
 
 import glob as globmod
 import os
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import h5py
 import numpy as np
 
 from dvsot.core import bounds
-from dvsot.dataset.boxes import box_problem
-from dvsot.dataset.digest import DIGEST_ATTR, digest_problem
-from dvsot.dataset.format import (FORMAT, FORMAT_VERSION, MAX_PIXELS, OBJECT_TRUTH, BoxTrack, ObjectTrack, Segment,
-                                  decode_attr, read_attrs)
-from dvsot.dataset.checks import (Damaged, check_duration, check_layout, check_root_links, check_sizes,
-                                      check_stored, columns_problem, int_attr, ms_to_idx_problem, rows_problem,
-                                      times_problem, truth_problem)
 from dvsot.core.errors import UserError, exception_line
-from dvsot.events.batch import NOISE_KINDS
+from dvsot.dataset.boxes import box_problem
+from dvsot.dataset.checks import (
+    Damaged,
+    check_duration,
+    check_layout,
+    check_root_links,
+    check_sizes,
+    check_stored,
+    columns_problem,
+    int_attr,
+    ms_to_idx_problem,
+    rows_problem,
+    times_problem,
+    truth_problem,
+)
+from dvsot.dataset.digest import DIGEST_ATTR, digest_problem
+from dvsot.dataset.format import (
+    FORMAT,
+    FORMAT_VERSION,
+    MAX_PIXELS,
+    OBJECT_TRUTH,
+    BoxTrack,
+    ObjectTrack,
+    Segment,
+    decode_attr,
+    read_attrs,
+)
 from dvsot.events import EventBatch
+from dvsot.events.batch import NOISE_KINDS
 
 
 class Dataset:
@@ -45,7 +66,13 @@ class Dataset:
         except Damaged as exc:
             self._file.close()
             raise UserError(f"{self.path}: damaged dvsot file ({exc})") from None
-        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py: RuntimeError for broken metadata
+        except (
+            OSError,
+            KeyError,
+            ValueError,
+            TypeError,
+            RuntimeError,
+        ) as exc:  # h5py: RuntimeError for broken metadata
             self._file.close()
             raise UserError(f"{self.path}: damaged dvsot file ({exception_line(exc, kind=False)})") from None
 
@@ -55,7 +82,9 @@ class Dataset:
             raise UserError(f"{self.path}: not a dvsot dataset file (root attribute 'format' is not '{FORMAT}')")
         version = int_attr({k: decode_attr(v) for k, v in f.attrs.items()}, "format_version", -(2**62))
         if not 1 <= version <= FORMAT_VERSION:
-            raise UserError(f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})")
+            raise UserError(
+                f"{self.path}: format_version {version} is not supported (this dvsot reads 1..{FORMAT_VERSION})"
+            )
         check_layout(f)
         check_stored(f)
         self.t_offset_us = check_root_links(f, version)
@@ -149,10 +178,13 @@ class Dataset:
         self._object_table(f)
         self._object_truth(f, n_boxes)
         self._check_masks(f, n_boxes)
-        self._limits = {"x": (self.width, f"expected 0 <= x < width {self.width}"),
-                        "y": (self.height, f"expected 0 <= y < height {self.height}"),
-                        "p": (2, "expected 0 or 1"), "signal": (2, "expected 0 or 1"),
-                        "noise_kind": (len(NOISE_KINDS), f"expected 0..{len(NOISE_KINDS) - 1} ({', '.join(NOISE_KINDS)})")}
+        self._limits = {
+            "x": (self.width, f"expected 0 <= x < width {self.width}"),
+            "y": (self.height, f"expected 0 <= y < height {self.height}"),
+            "p": (2, "expected 0 or 1"),
+            "signal": (2, "expected 0 or 1"),
+            "noise_kind": (len(NOISE_KINDS), f"expected 0..{len(NOISE_KINDS) - 1} ({', '.join(NOISE_KINDS)})"),
+        }
         if self.num_events:  # two chunk reads: in a sorted file the ends bound every timestamp
             first = int(self._read("t", 0, 1)[0])
             last = int(self._read("t", self.num_events - 1, self.num_events)[0])
@@ -308,7 +340,7 @@ class Dataset:
             return None
         return {row["id"]: int(self._object_counts[row["id"]]) for row in self.objects}
 
-    def __enter__(self) -> "Dataset":
+    def __enter__(self) -> Dataset:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -330,8 +362,14 @@ class Dataset:
         """A whole small dataset (ms_to_idx, boxes, segments) read into memory; a failed read names it."""
         try:
             return self._file[name][()]
-        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise self._damaged(f"cannot read /{name}, its stored data is corrupt ({exception_line(exc, kind=False)})") from None
+        except (
+            OSError,
+            ValueError,
+            RuntimeError,
+        ) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise self._damaged(
+                f"cannot read /{name}, its stored data is corrupt ({exception_line(exc, kind=False)})"
+            ) from None
 
     def _index_at(self, t_us: int) -> int:
         """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
@@ -353,9 +391,15 @@ class Dataset:
     def _read(self, column: str, i0: int, i1: int) -> np.ndarray:
         try:
             return self._columns[column][i0:i1]
-        except (OSError, ValueError, RuntimeError) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise self._damaged(f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
-                                f"({exception_line(exc, kind=False)})") from None
+        except (
+            OSError,
+            ValueError,
+            RuntimeError,
+        ) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
+            raise self._damaged(
+                f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
+                f"({exception_line(exc, kind=False)})"
+            ) from None
 
     def _batch(self, i0: int, i1: int, t0_us: int, t1_us: int, source: str) -> EventBatch:
         """Events i0..i1-1, checked: sorted times in [t0_us, t1_us) (microseconds), pixels on the sensor, 0/1 flags."""

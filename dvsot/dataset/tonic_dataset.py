@@ -23,10 +23,11 @@ then gets (events, that dict).
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
-from dvsot.events.batch import STRUCTURED_DTYPE
 from dvsot.dataset.torchdata import SegmentDataset
+from dvsot.events.batch import STRUCTURED_DTYPE
 
 
 class TonicDataset(SegmentDataset):

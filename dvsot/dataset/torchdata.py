@@ -32,7 +32,8 @@ dataset attributes (ordering, dtype, transforms).
 from __future__ import annotations
 
 import os
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -107,7 +108,13 @@ class SegmentDataset:
             box = self.target_transform(box)
         if not self.labels:
             return events, box
-        return events, box, seg.events.object, target_mask(seg.events, ds.width, ds.height, ds.target_id), segment_labels(ds, seg)
+        return (
+            events,
+            box,
+            seg.events.object,
+            target_mask(seg.events, ds.width, ds.height, ds.target_id),
+            segment_labels(ds, seg),
+        )
 
     def close(self) -> None:
         """Close the files this process opened."""

@@ -12,18 +12,27 @@ import h5py
 import numpy as np
 
 from dvsot.core import bounds
-from dvsot.dataset.boxes import box_problem
-from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
-from dvsot.runtime.threads import OrderedWorker
-from dvsot.dataset.format import (COMPRESSIONS, FORMAT, FORMAT_VERSION, OBJECT_TRUTH, BoxTrack, attrs_problem,
-                                  read_attrs, write_attr, write_attrs)
-from dvsot.dataset.reader import Dataset, chunk_digest
-from dvsot.dataset.segment_truth import SegmentTruth, segment_truth
 from dvsot.core.defaults import SEGMENT_US
 from dvsot.core.errors import RunError, UserError
-from dvsot.events.batch import NOISE_KINDS
-from dvsot.events import EventBatch
+from dvsot.dataset.boxes import box_problem
+from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
+from dvsot.dataset.format import (
+    COMPRESSIONS,
+    FORMAT,
+    FORMAT_VERSION,
+    OBJECT_TRUTH,
+    BoxTrack,
+    attrs_problem,
+    read_attrs,
+    write_attr,
+    write_attrs,
+)
 from dvsot.dataset.h5chunks import encode_chunk
+from dvsot.dataset.reader import Dataset, chunk_digest
+from dvsot.dataset.segment_truth import SegmentTruth, segment_truth
+from dvsot.events import EventBatch
+from dvsot.events.batch import NOISE_KINDS
+from dvsot.runtime.threads import OrderedWorker
 
 _EVENT_CHUNK = 1 << 18  # events per HDF5 chunk and per flush of the write buffer
 
@@ -126,7 +135,7 @@ class DatasetWriter:
         self._digests: dict[str, list[bytes]] = {}
         self._closed = False
 
-    def __enter__(self) -> "DatasetWriter":
+    def __enter__(self) -> DatasetWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -272,7 +281,11 @@ class DatasetWriter:
             fds = [int(fd) for fd in os.listdir("/proc/self/fd") if _readlink(f"/proc/self/fd/{fd}") == target]
             for fd in fds:
                 # an in-memory file takes HDF5's writes and its truncation to the file's end (sparse, no memory)
-                sink = os.memfd_create("dvsot-discarded") if hasattr(os, "memfd_create") else os.open(os.devnull, os.O_RDWR)
+                sink = (
+                    os.memfd_create("dvsot-discarded")
+                    if hasattr(os, "memfd_create")
+                    else os.open(os.devnull, os.O_RDWR)
+                )
                 os.dup2(sink, fd)
                 os.close(sink)
         except OSError:

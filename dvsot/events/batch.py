@@ -33,13 +33,13 @@ class EventBatch:
         return int(self.t.shape[0])
 
     @staticmethod
-    def empty() -> "EventBatch":
+    def empty() -> EventBatch:
         """A batch with no events."""
         return EventBatch(np.empty(0, np.uint16), np.empty(0, np.uint16), np.empty(0, np.int64),
                           np.empty(0, np.uint8), np.empty(0, bool))
 
     @staticmethod
-    def concatenate(batches: list["EventBatch"]) -> "EventBatch":
+    def concatenate(batches: list[EventBatch]) -> EventBatch:
         """Join batches in the given order (the caller keeps them time-ordered)."""
         if not batches:
             return EventBatch.empty()
@@ -63,7 +63,7 @@ class EventBatch:
         return out
 
     @staticmethod
-    def from_structured(events: np.ndarray) -> "EventBatch":
+    def from_structured(events: np.ndarray) -> EventBatch:
         """A batch from a structured array x, y, t (microseconds), p (0/1, -1/+1 or bool), as tonic gives."""
         names = events.dtype.names or ()
         missing = [k for k in "xytp" if k not in names]
@@ -78,7 +78,7 @@ class EventBatch:
         return EventBatch(events["x"].astype(np.uint16), events["y"].astype(np.uint16),
                           events["t"].astype(np.int64), (p > 0).astype(np.uint8))
 
-    def select(self, mask_or_index: np.ndarray) -> "EventBatch":
+    def select(self, mask_or_index: np.ndarray) -> EventBatch:
         """The events picked by a boolean mask or an index array."""
         sig = None if self.signal is None else self.signal[mask_or_index]
         kind = None if self.noise_kind is None else self.noise_kind[mask_or_index]

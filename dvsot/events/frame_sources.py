@@ -16,19 +16,19 @@ os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")  # must be set before cv2
 # OpenCV reads this once, when it first opens a video, so it cannot be scoped like the log level below.
 os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Iterator
 
 import cv2
 import numpy as np
 
-from dvsot.runtime.threads import read_ahead
-from dvsot.core.errors import UserError
 from dvsot.core.bounds import MAX_SENSOR_PIXELS, file_kind_problem
+from dvsot.core.errors import UserError
 from dvsot.events import CodedFrame, log_intensity
+from dvsot.runtime.threads import read_ahead
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}

@@ -24,13 +24,14 @@ Ids are small integers (u1): 0 the background (the background plane and the worl
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from dvsot.events.batch import EventBatch
 from dvsot.core.errors import UserError
+from dvsot.events.batch import EventBatch
 
 BACKGROUND_ID = 0
 TARGET_ID = 1

@@ -49,7 +49,7 @@ PRESETS: dict[str, dict] = {
 }
 
 
-def sensor_on(params: "EventParams") -> bool:
+def sensor_on(params: EventParams) -> bool:
     """True if any stage beyond the ideal model is on (then EventSimulator runs inside a SensorModel)."""
     fields = type(params).model_fields
     return any(getattr(params, name) != fields[name].default for name in SENSOR_FIELDS)

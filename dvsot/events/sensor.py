@@ -55,7 +55,7 @@ from dvsot.events.batch import NOISE_KINDS, EventBatch
 from dvsot.events.kernel import crossed
 
 if TYPE_CHECKING:
-    from dvsot.events import EventParams, EventSimulator
+    from dvsot.events import EventSimulator
 
 SHOT, LEAK, HOT = (NOISE_KINDS.index(k) for k in ("shot", "leak", "hot"))
 _NONE = np.empty(0)  # no photoreceptor noise
@@ -404,7 +404,7 @@ class Renewal:
 class SensorModel:
     """The stages around an EventSimulator: frames in (as EventSimulator.step takes them), time-ordered events out."""
 
-    def __init__(self, sim: "EventSimulator", seed: int) -> None:
+    def __init__(self, sim: EventSimulator, seed: int) -> None:
         self.sim, self.params = sim, sim.params
         p, n = self.params, sim.width * sim.height
         # children 0 and 1 are the simulator's; a stage added later takes the next child, leaving the others' draws

@@ -43,8 +43,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from dvsot.core.errors import UserError
 from dvsot.core.bounds import MAX_CONTRAST, MAX_DURATION_US
+from dvsot.core.errors import UserError
 from dvsot.events.batch import STRUCTURED_DTYPE, EventBatch  # noqa: F401  (re-exported: dvsot.events.EventBatch)
 
 MAX_NOISE_EVENTS = 5e7  # shot-noise or leak events drawn for one interval between frames (1.2 GB of arrays)
@@ -120,7 +120,7 @@ class EventParams(BaseModel):
         return expand_preset(values) if isinstance(values, dict) else values
 
     @model_validator(mode="after")
-    def _stages(self) -> "EventParams":
+    def _stages(self) -> EventParams:
         if self.lowpass_order and self.lowpass_cutoff_hz <= 0:
             raise ValueError(f"lowpass_cutoff_hz {self.lowpass_cutoff_hz:g} Hz: must be > 0 Hz with lowpass_order "
                              f"{self.lowpass_order}")
@@ -142,7 +142,7 @@ class EventParams(BaseModel):
         return self
 
     @classmethod
-    def parse(cls, values: dict, source: str = "event parameters") -> "EventParams":
+    def parse(cls, values: dict, source: str = "event parameters") -> EventParams:
         """Validated parameters; a bad field raises UserError naming it, with its unit and range."""
         try:
             return cls(**values)

@@ -9,15 +9,16 @@ complete, so bad input or a crash leaves nothing behind.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dvsot.core.bounds import sensor_size_problem
 from dvsot.core.defaults import EXPORT_EVT_VERSION, IMPORT_EVT_VERSION
 from dvsot.core.errors import UserError, exception_line, label
-from dvsot.core.bounds import sensor_size_problem
 
 if TYPE_CHECKING:
     from dvsot.dataset import Dataset

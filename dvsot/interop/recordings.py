@@ -21,15 +21,15 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
+from dvsot.core.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 from dvsot.core.errors import UserError, label
 from dvsot.interop.event_files import EventFile, frame_times, read_event_file
-from dvsot.core.defaults import IMPORT_EVT_VERSION, SEGMENT_US
 
 _SPLIT = re.compile(r"[,\t ]+")
 _CHUNK = 1 << 20  # events handed to the writer at a time
@@ -178,9 +178,9 @@ def import_recording(events: str | os.PathLike, out: str | os.PathLike, boxes: s
     labels: how messages name the settings out, boxes, box_times, box_times_from_frames, size and segment_us (a
     command's flags); header: the CSV or TXT events file's first line is a header line, not an event."""
     from dvsot import __version__
+    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
     from dvsot.dataset import DatasetWriter
     from dvsot.events import EventBatch
-    from dvsot.core.bounds import MAX_SEGMENT_US, MIN_SEGMENT_US, range_problem
     from dvsot.runtime.outputs import output_file
 
     problem = range_problem(label("segment_us", labels), segment_us, MIN_SEGMENT_US, MAX_SEGMENT_US, "us")

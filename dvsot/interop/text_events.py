@@ -82,7 +82,9 @@ def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndar
         raise ValueError("text export needs timestamps >= 0")
     with open(path, "wb") as fh:
         labelled = objects is not None and kind == "csv"
-        fh.write((b"t,x,y,p,object\n" if labelled else b"t,x,y,p\n") if kind == "csv" else f"{width} {height}\n".encode())
+        fh.write(
+            (b"t,x,y,p,object\n" if labelled else b"t,x,y,p\n") if kind == "csv" else f"{width} {height}\n".encode()
+        )
         if not len(t):
             return
         scratch: dict = {}
@@ -118,7 +120,10 @@ def line_of_row(path: Path, skip: int, row: int) -> int:
     return lines[row] if 0 <= row < len(lines) else len(lines) + skip
 
 
-CSV_HEADERS = (b"t,x,y,p", b"t,x,y,p,object")  # the header lines dvsot writes (without, with labels), known without --header
+CSV_HEADERS = (
+    b"t,x,y,p",
+    b"t,x,y,p,object",
+)  # the header lines dvsot writes (without, with labels), known without --header
 # |t| bounds under which float64 holds every microsecond exactly: CSV microseconds below 2**53, TXT seconds
 # below 2**31 (a float's spacing there is 0.24 us, so two microseconds never share a float; epoch times until 2038)
 MAX_CSV_US = 2.0 ** 53
@@ -141,7 +146,9 @@ def _header(path: Path, kind: str, header: bool = False) -> tuple[int, tuple[int
         try:
             return 1, (int(cells[0]), int(cells[1]))
         except ValueError:
-            raise UserError(f"{path}:1: expected 'width height' or 't x y p', got {first.decode(errors='replace')!r}") from None
+            raise UserError(
+                f"{path}:1: expected 'width height' or 't x y p', got {first.decode(errors='replace')!r}"
+            ) from None
     return (1 if header else 0), None
 
 

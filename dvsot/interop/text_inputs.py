@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dvsot.core.errors import UserError
 from dvsot.core.bounds import file_kind_problem
+from dvsot.core.errors import UserError
 from dvsot.dataset.boxes import box_problem
 
 MAX_SECONDS = 1e9  # keeps timestamps in microseconds well inside int64

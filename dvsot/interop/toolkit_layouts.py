@@ -23,8 +23,9 @@ visible entry as a sequence) names them, and an export again replaces them all a
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING
 
 from dvsot.core.errors import UserError, label
 from dvsot.core.file_names import file_stem
@@ -111,8 +112,13 @@ def sequence_dir(name: str, layout: str) -> Path:
     return Path(stem, f"{stem}-1") if layout == "lasot" else Path(stem)
 
 
-def export_layout(specs: str | os.PathLike | list, out_dir: str | os.PathLike, layout: str, labels: Mapping[str, str] | None = None,
-                  split: str | None = None) -> list[Path]:
+def export_layout(
+    specs: str | os.PathLike | list,
+    out_dir: str | os.PathLike,
+    layout: str,
+    labels: Mapping[str, str] | None = None,
+    split: str | None = None,
+) -> list[Path]:
     """Write the ground truth and tags of the dataset files that specs name (a file, directory, glob or a list of
     them; split: only those of one split) into out_dir in a toolkit's layout (LAYOUTS); the files written.
 

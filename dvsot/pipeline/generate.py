@@ -12,18 +12,19 @@ from pathlib import Path
 import numpy as np
 
 from dvsot import __version__
-from dvsot.runtime import interrupts
-from dvsot.dataset.boxes import box_from_mask, mask_visibility, object_rows, truncation_share
-from dvsot.scene import SceneConfig
-from dvsot.dataset.format import attrs_problem
 from dvsot.core.errors import UserError
-from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
-from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR, FrameDigest
+from dvsot.dataset.boxes import box_from_mask, mask_visibility, object_rows, truncation_share
+from dvsot.dataset.format import attrs_problem
 from dvsot.events import EventSimulator
-from dvsot.runtime.outputs import run_outputs, writing
-from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times, with_extra_times
-from dvsot.scene.shapes import mesh_for, sample_points
+from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
+from dvsot.pipeline.kept_frames import DIGEST_ATTR as KEPT_DIGEST_ATTR
+from dvsot.pipeline.kept_frames import FrameDigest
 from dvsot.pipeline.sequence import write_sequence
+from dvsot.render.sample_times import frames_saved_vs_fixed, motion_bounded_times, with_extra_times
+from dvsot.runtime import interrupts
+from dvsot.runtime.outputs import run_outputs, writing
+from dvsot.scene import SceneConfig
+from dvsot.scene.shapes import mesh_for, sample_points
 from dvsot.scene.trajectory import pose_and_scale, pose_matrix, project
 
 

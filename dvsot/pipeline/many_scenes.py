@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
 from dvsot.core.errors import UserError, label
 from dvsot.pipeline.manifest import Manifest, scene_failure

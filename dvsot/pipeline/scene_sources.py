@@ -7,11 +7,11 @@ names; a command passes {name: flag} as `labels` to have its flags named instead
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
-from dvsot.dataset.preview import check_preview_size
 from dvsot.core.errors import UserError, label
+from dvsot.dataset.preview import check_preview_size
 from dvsot.pipeline.scene_task import SceneTask
 from dvsot.scene import SceneConfig, asset_paths, load_scene, read_scene_text, read_yaml
 from dvsot.scene.templates import draw_variants, is_template, read_template, validate_variant

@@ -7,17 +7,17 @@ simulation and writing overlap.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from dvsot.dataset import DatasetWriter
 from dvsot.core.defaults import SEGMENT_US
 from dvsot.core.errors import UserError
-from dvsot.events.labels import EventLabeller, LabelledFrame
+from dvsot.dataset import DatasetWriter
 from dvsot.events import EventSimulator
+from dvsot.events.labels import EventLabeller, LabelledFrame
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -91,11 +91,11 @@ def simulate_file(frames: str | os.PathLike, output: str | os.PathLike,
     the file appears only when complete.
     """
     from dvsot import __version__
+    from dvsot.core.bounds import MAX_SENSOR_PIXELS
     from dvsot.events import EventSimulator
     from dvsot.events.frame_sources import open_frames
-    from dvsot.runtime.outputs import output_file
     from dvsot.pipeline.sequence import write_sequence
-    from dvsot.core.bounds import MAX_SENSOR_PIXELS
+    from dvsot.runtime.outputs import output_file
 
     params = event_params(params, labels)
     check_settings(seed, segment_us, fps, labels)

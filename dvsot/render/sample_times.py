@@ -23,10 +23,9 @@ this only matters for motions faster than the sampling itself, which the minimum
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
-
 
 Window = tuple[float, float, float, float]  # x0, y0, x1, y1 in pixels
 

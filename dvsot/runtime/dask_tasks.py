@@ -20,12 +20,13 @@ import logging
 import os
 import uuid
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from dvsot.core.errors import RunError, UserError, exception_line
 from dvsot.core.bounds import MAX_WORKERS
+from dvsot.core.errors import RunError, UserError, exception_line
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ def worker_address() -> str:
         return f"pid {os.getpid()}"
 
 
-_LOCAL: "weakref.WeakSet" = weakref.WeakSet()  # clients of local:N clusters: their workers share this machine
+_LOCAL: weakref.WeakSet = weakref.WeakSet()  # clients of local:N clusters: their workers share this machine
 
 
 def lease_home(client, lease_dir: str | os.PathLike) -> Path:
@@ -171,8 +172,8 @@ def host_workers(client) -> dict[str, int]:
 def _guarded(lease: str | None, fn: Callable, *args) -> Any:
     """fn(*args) in a worker, under its run's lease if it has one (dvsot.runtime.staging.LeaseGuard); an exception, an
     interrupt included, comes back as a Failure (no traceback in the worker's log)."""
-    from dvsot.runtime import interrupts, local_workers
     from dvsot.core.errors import RunError
+    from dvsot.runtime import interrupts, local_workers
     from dvsot.runtime.staging import LeaseGuard
 
     guard = LeaseGuard(lease) if lease is not None else None
@@ -332,7 +333,7 @@ class TaskRunner:
         self.cluster = Cluster(scheduler) if scheduler is not None else None
         self.client = None
 
-    def __enter__(self) -> "TaskRunner":
+    def __enter__(self) -> TaskRunner:
         if self.cluster is not None:
             self.client = self.cluster.__enter__()
         return self

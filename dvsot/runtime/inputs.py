@@ -6,8 +6,8 @@ import os
 from pathlib import Path
 from typing import IO
 
-from dvsot.core.errors import UserError
 from dvsot.core.bounds import file_kind_problem
+from dvsot.core.errors import UserError
 
 
 def regular_input(path: str | os.PathLike, what: str | None = None, missing_ok: bool = False) -> Path | None:

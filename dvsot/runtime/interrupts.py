@@ -20,9 +20,10 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Iterator
 from contextlib import contextmanager, nullcontext
 from contextvars import ContextVar
-from typing import ContextManager, Iterator, Protocol
+from typing import ContextManager, Protocol
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 

@@ -103,10 +103,16 @@ def start(address: str, count: int) -> list[subprocess.Popen]:
     import dask.config
 
     env["DASK_INTERNAL_INHERIT_CONFIG"] = dask.config.serialize(dask.config.global_config)  # as a Nanny passes it
-    return [subprocess.Popen([sys.executable, "-m", "dvsot.runtime.local_workers", address, str(os.getpid()), f"local-{k}"],
-                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             env=env)
-            for k in range(count)]
+    return [
+        subprocess.Popen(
+            [sys.executable, "-m", "dvsot.runtime.local_workers", address, str(os.getpid()), f"local-{k}"],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+        for k in range(count)
+    ]
 
 
 def stop(procs: list[subprocess.Popen], timeout_s: float = 30.0) -> None:

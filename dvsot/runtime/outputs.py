@@ -33,12 +33,12 @@ import hashlib
 import os
 import re
 import time
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator
 
-from dvsot.runtime import interrupts, staging
 from dvsot.core.errors import RunError, UserError
+from dvsot.runtime import interrupts, staging
 
 MANIFEST_FORMAT = "dvsot-run"
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}

@@ -23,9 +23,9 @@ import secrets
 import shutil
 import socket
 import stat
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 try:
     import fcntl
@@ -33,9 +33,13 @@ except ImportError:  # not POSIX: leases are checked by their file alone
     fcntl = None
 
 _HOST = re.sub(r"[^A-Za-z0-9.-]", "-", socket.gethostname() or "host")[:64] or "host"
-_NAME = re.compile(r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old|lease)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
-                   r"(?P<suffix>(?:\.[^.~/]*)*)$")  # a writer's own temp of a staged file (faery's <name>.write) too
-_LEGACY = re.compile(r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$")  # the temp names of earlier dvsot versions
+_NAME = re.compile(
+    r"^\.(?P<base>.+)\.(?P<kind>tmp|commit|old|lease)~(?P<host>[^~/]+)~(?P<pid>\d+)~(?P<token>[0-9a-f]{8})"
+    r"(?P<suffix>(?:\.[^.~/]*)*)$"
+)  # a writer's own temp of a staged file (faery's <name>.write) too
+_LEGACY = re.compile(
+    r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)(?P<suffix>\.[^.~]*)?$"
+)  # the temp names of earlier dvsot versions
 
 
 def host() -> str:

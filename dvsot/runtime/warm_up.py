@@ -13,8 +13,8 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from dvsot.core.errors import exception_line
 from dvsot.runtime.cpu_shares import pin_to_share, threads_for_this_worker

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from dvsot.scene import Locate
 from dvsot.core.errors import UserError
+from dvsot.scene import Locate
 
 KINDS = {"uniform": set(), "normal": {"clip"}, "choice": {"weights"}}
 MAX_COUNT = 1000
@@ -132,7 +132,9 @@ def _choice(ctx: DrawContext, node: dict, tpath: tuple, spath: tuple) -> Any:
     if weights is not None:
         if not (isinstance(weights, list) and len(weights) == len(opts) and all(_number(w) and w >= 0 for w in weights)
                 and sum(weights) > 0):
-            raise ctx.fail(tpath + ("weights",), f"weights must be {len(opts)} numbers >= 0, not all 0, got {weights!r}")
+            raise ctx.fail(
+                tpath + ("weights",), f"weights must be {len(opts)} numbers >= 0, not all 0, got {weights!r}"
+            )
         p = np.asarray(weights, np.float64) / sum(weights)
     if ctx.probe is None:
         m = int(ctx.rng(spath).choice(len(opts), p=p))

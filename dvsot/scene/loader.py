@@ -5,15 +5,16 @@ Every problem is one UserError line naming the file, the field, the YAML line an
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from pydantic import ValidationError
 
 from dvsot.core import bounds, yaml12
-from dvsot.scene.schema import Material, SceneConfig
 from dvsot.core.errors import UserError, exception_line
 from dvsot.scene.checks import scene_problems
+from dvsot.scene.schema import Material, SceneConfig
 
 
 def _field_loc(loc: tuple) -> tuple:

@@ -10,14 +10,15 @@ smooth interpolation (the default) rounds the corners.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Callable, Literal
+from collections.abc import Callable
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from dvsot.scene import Vec3
 from dvsot.core.errors import UserError
 from dvsot.core.strict import Float, Strict
+from dvsot.scene import Vec3
 
 _PLANES = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}
 MAX_STEPS = 100_000
@@ -38,7 +39,7 @@ class RandomWalk(Strict):
     look_at: Vec3 | None = None
 
     @model_validator(mode="after")
-    def _consistent(self) -> "RandomWalk":
+    def _consistent(self) -> RandomWalk:
         if self.speed_mps[0] > self.speed_mps[1]:
             raise ValueError(f"speed_mps needs [lo, hi] with lo <= hi, got {list(self.speed_mps)}")
         if self.look_at is not None and (self.rotation_deg is not None or self.spin_deg_s is not None):

@@ -15,8 +15,8 @@ from typing import Annotated, Literal
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from dvsot.core.defaults import SEGMENT_US
-from dvsot.events import EventParams
 from dvsot.core.strict import Bool, Float, Int, Strict  # noqa: F401  (also imported from here: dvsot.scene re-exports them)
+from dvsot.events import EventParams
 
 # Sane ranges (dvsot.scene.checks has the checks that need the whole scene): coordinates within 1000 km
 # (Blender works in float32), scales within 1e-3..1e3 (0 makes an object vanish, 1e30 swallows the camera)
@@ -84,7 +84,7 @@ class Sensor(Strict):
         return value
 
     @model_validator(mode="after")
-    def _lens(self) -> "Sensor":
+    def _lens(self) -> Sensor:
         if self.fy is not None and self.fx is not None and abs(self.fy - self.fx) > 1e-6 * self.fx:
             raise ValueError("fy must equal fx (square pixels)")
         if self.fy is not None and self.fx is None:
@@ -124,7 +124,7 @@ class Keyframe(Strict):
     scale: Scale | tuple[Scale, Scale, Scale] | None = None
 
     @model_validator(mode="after")
-    def _one_rotation(self) -> "Keyframe":
+    def _one_rotation(self) -> Keyframe:
         if self.rotation_deg is not None and self.look_at is not None:
             raise ValueError("give rotation_deg or look_at, not both")
         return self
@@ -139,7 +139,7 @@ class Trajectory(Strict):
     shake_hz: Float = Field(1.5, gt=0, le=50)
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Trajectory":
+    def _ordered(self) -> Trajectory:
         ts = [k.t for k in self.keyframes]
         if any(b <= a for a, b in zip(ts, ts[1:])):
             raise ValueError("keyframe times must increase")
@@ -169,7 +169,7 @@ class Texture(Strict):
     seed: Float = Field(0.0, description="offset of the procedural pattern (its 'W' coordinate)")
 
     @model_validator(mode="after")
-    def _image(self) -> "Texture":
+    def _image(self) -> Texture:
         if (self.type == "image") != (self.path is not None):
             raise ValueError("type: image needs path, and path is only for type: image")
         return self
@@ -198,7 +198,7 @@ class SceneObject(Strict):
     trajectory: Trajectory
 
     @model_validator(mode="after")
-    def _one_source(self) -> "SceneObject":
+    def _one_source(self) -> SceneObject:
         if (self.shape is None) == (self.mesh is None):
             raise ValueError("give exactly one of shape or mesh")
         if self.mesh is not None and self.mesh.suffix.lower() not in {".obj", ".ply", ".stl", ".glb", ".gltf"}:
@@ -253,7 +253,8 @@ class Render(Strict):
     max_bounces: Int = Field(2, ge=0, le=32)
     persistent_data: Bool = True
     amodal_mask: Literal["raster", "render"] = Field(
-        "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer")
+        "raster", description="raster: project the target's triangles (exact, fast); render: a second Cycles view layer"
+    )
     specular: Bool = Field(
         True, description="false: matte materials (no specular layer of the Principled BSDF); faster, duller look")
     shading: Literal["path", "direct"] = Field(
@@ -282,7 +283,7 @@ class Sampling(Strict):
         [], max_length=100000, description="milliseconds: render these instants too (ground truth exactly there)")
 
     @model_validator(mode="after")
-    def _rates(self) -> "Sampling":
+    def _rates(self) -> Sampling:
         if self.max_rate_hz < self.min_rate_hz:
             raise ValueError("max_rate_hz must be >= min_rate_hz")
         return self
@@ -311,7 +312,7 @@ class SceneConfig(Strict):
     sampling: Sampling = Sampling()
 
     @model_validator(mode="after")
-    def _extra_times_inside(self) -> "SceneConfig":
+    def _extra_times_inside(self) -> SceneConfig:
         late = [t for t in self.sampling.extra_times_ms if t > self.duration_s * 1000]
         if late:
             raise ValueError(f"sampling.extra_times_ms holds {late[0]:g}, after the scene's end "
@@ -319,7 +320,7 @@ class SceneConfig(Strict):
         return self
 
     @model_validator(mode="after")
-    def _direct_shading_lights(self) -> "SceneConfig":
+    def _direct_shading_lights(self) -> SceneConfig:
         if self.render.shading == "direct":
             for i, light in enumerate(self.lights):
                 if light.type != "sun":

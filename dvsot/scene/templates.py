@@ -21,10 +21,10 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from dvsot.scene import Locate, SceneConfig, read_scene_text, read_yaml, validate_scene
-from dvsot.scene.distributions import CENTRE, DrawContext, distributions, dotted, is_plain, kind_of, resolve
 from dvsot.core.errors import UserError
 from dvsot.events import EventParams
+from dvsot.scene import Locate, SceneConfig, read_scene_text, read_yaml, validate_scene
+from dvsot.scene.distributions import CENTRE, DrawContext, distributions, dotted, is_plain, kind_of, resolve
 from dvsot.scene.random_walk import expand_walks
 from dvsot.scene.yaml_write import to_yaml
 
@@ -84,8 +84,12 @@ def _draw(tpl: Template, index: int | None, probe: tuple | None = None) -> Varia
     scene = {k: resolve(ctx, v, (k,), (k,)) for k, v in tpl.data.items()}
     name = variant_name(tpl.name, index if index is not None else 0)
     scene["name"], scene["seed"] = name, seed
-    expand_walks(scene, lambda spath: ctx.rng(spath, "walk"), lambda spath, msg: ctx.fail(_origin(ctx.origin, spath), msg),
-                 ctx.origin)
+    expand_walks(
+        scene,
+        lambda spath: ctx.rng(spath, "walk"),
+        lambda spath, msg: ctx.fail(_origin(ctx.origin, spath), msg),
+        ctx.origin,
+    )
     return Variant(index if index is not None else 0, seed, name, scene, ctx.drawn, ctx.origin)
 
 

@@ -118,7 +118,9 @@ def compose(location: np.ndarray, rotation: np.ndarray, scale: np.ndarray | floa
 
 
 def _track(keys: list, attr: str) -> tuple[np.ndarray, np.ndarray] | None:
-    pairs = [(k.t, np.atleast_1d(np.asarray(getattr(k, attr), np.float64))) for k in keys if getattr(k, attr) is not None]
+    pairs = [
+        (k.t, np.atleast_1d(np.asarray(getattr(k, attr), np.float64))) for k in keys if getattr(k, attr) is not None
+    ]
     if not pairs:
         return None
     width = max(len(v) for _, v in pairs)

@@ -4,17 +4,18 @@ loop over epochs (batches, validation every `val_every` steps, the `max_minutes`
 
 from __future__ import annotations
 
-import time
 import math
-from typing import Any, Callable, Literal, Sequence
+import time
+from collections.abc import Callable, Sequence
+from typing import Any, Literal
 
 import numpy as np
 import torch
 from pydantic import BaseModel, Field, ValidationError
 
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from dvsot.core.errors import RunError
 from dvsot.core.strict import Strict
-from dvsot.core.bounds import MAX_LEARNING_RATE
 
 HELD_OUT_EVERY = 10  # every 10th usable segment of each file is a validation segment, never a training one
 
@@ -36,7 +37,9 @@ class TrainBudget(Strict):
     epochs: int = Field(3, ge=1)
     segments_per_epoch: int | None = Field(400, ge=1)
     batch_segments: int = Field(4, ge=1)
-    lr: float = Field(2e-3, gt=0, le=MAX_LEARNING_RATE)  # checked here: Adam's own ValueError on a NaN rate would look like a data problem
+    lr: float = Field(
+        2e-3, gt=0, le=MAX_LEARNING_RATE
+    )  # checked here: Adam's own ValueError on a NaN rate would look like a data problem
     # the paper gives none: constant (the default) or cosine, from lr to 0 over the planned steps (an ablation row)
     lr_schedule: Literal["constant", "cosine"] = "constant"
     seed: int = Field(0, ge=0, lt=2**63 - 1)  # numpy seeds are non-negative, torch's fit in int64 (seed + 1 is used)

@@ -16,14 +16,15 @@ import json
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 import torch
-from typing import Any, Callable, Literal
-
 from pydantic import Field, SerializeAsAny, model_validator
 
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from dvsot.dataset import Dataset
 from dvsot.events import EventBatch
 from sctn.encoding import encode_boxes
@@ -33,9 +34,7 @@ from sctn.loss import ErrorTime, LossKind, error_voltages, voltage_loss
 from sctn.network import SCTN, NetworkConfig
 from sctn.neurons import THETA
 from sctn.samples import TRAIN, labelled_samples
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import (TrainBudget, TrainConfigError, Validation, fit,  # noqa: F401  (TrainConfigError)
-                                held_out, score_note, spread)
+from sctn.training.loop import TrainBudget, TrainConfigError, Validation, fit, held_out, score_note, spread  # noqa: F401  (TrainConfigError)
 
 NEARLY_SILENT = 0.1  # mean target V_max on validation positives below this: a nearly silent network
 MAX_BATCH_SEGMENTS = 64  # segments per step: 60 samples of T x 107 x 107 each, ~55 MB a segment
@@ -290,7 +289,14 @@ def provenance(files: list[Path], cfg: TrainConfig, history: dict) -> dict:
         with Dataset(f) as ds:
             data.append({"file": str(f), "name": ds.name, "split": ds.split, "bytes": Path(f).stat().st_size,
                          "events": ds.num_events, "segments": ds.num_segments})
-    return {"train_config": cfg.model_dump(), "data": data, "command": " ".join(sys.argv), "git_commit": commit,
-            "history": {k: v for k, v in history.items() if k != "train_loss"},
-            "train_loss_first_last": [history["train_loss"][0], history["train_loss"][-1]] if history["train_loss"] else None,
-            "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    return {
+        "train_config": cfg.model_dump(),
+        "data": data,
+        "command": " ".join(sys.argv),
+        "git_commit": commit,
+        "history": {k: v for k, v in history.items() if k != "train_loss"},
+        "train_loss_first_last": [history["train_loss"][0], history["train_loss"][-1]]
+        if history["train_loss"]
+        else None,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }

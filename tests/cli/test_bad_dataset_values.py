@@ -10,6 +10,7 @@ import pytest
 from dvsot.cli import main
 from dvsot.dataset import DatasetWriter
 from dvsot.events import EventBatch
+
 DIGEST_ATTR = "attrs_sha256"  # the root attribute the writer adds (dvsot.dataset.digest)
 
 W, H = 64, 48
@@ -59,8 +60,11 @@ def test_bad_boxes_are_refused_by_info_bench_and_train(tmp_path, capsys, case):
     make(path)
     with h5py.File(path, "a") as f:
         damage(f)
-    for argv in (["info", str(path)], ["bench", "--tracker", "rct", "--data", str(path), "--split", "any",
-                                         "--out", str(tmp_path / "b")], ["train", "--data", str(path), "-o", str(tmp_path / "c.pt")]):
+    for argv in (
+        ["info", str(path)],
+        ["bench", "--tracker", "rct", "--data", str(path), "--split", "any", "--out", str(tmp_path / "b")],
+        ["train", "--data", str(path), "-o", str(tmp_path / "c.pt")],
+    ):
         assert main(argv) == 2, argv
         err = one_error_line(capsys)
         assert str(path) in err and field in err and words in err, err

@@ -186,15 +186,17 @@ def test_checkpoint_without_sctn_is_an_error(tmp_path, capsys):
 def test_bad_options_fail_before_the_run(tmp_path, capsys):
     make(tmp_path / "a.h5")
     data = ["--data", str(tmp_path / "a.h5"), "--out", str(tmp_path / "out")]
-    cases = [("rct", "rct.bogus=1", "--option rct.bogus=1: tracker 'rct' has no option 'bogus'"),
-             ("rct", "rct.cluster_size=-1", "--option rct.cluster_size=-1: Input should be greater than 0"),
-             ("rct", "rct.cluster_size=abc", "--option rct.cluster_size=abc: Input should be a valid number"),
-             ("test-still", "test-still.bogus=1", "--option test-still.bogus=1: tracker 'test-still' takes no options"),
-             ("sctn", "sctn.bogus=1", "--option sctn.bogus=1: tracker 'sctn' has no option 'bogus'"),
-             ("sctn", "sctn.crop=foo", "--option sctn.crop=foo: Input should be 'bilinear' or 'nearest'"),
-             ("sctn", "sctn.fast=maybe", "--option sctn.fast=maybe: Input should be a valid boolean"),
-             ("sctn", "sctn.n_candidates=0", "--option sctn.n_candidates=0: Input should be greater than or equal to 1"),
-             ("sctn", "sctn.trans=.nan", "--option sctn.trans=.nan: Input should be a finite number")]
+    cases = [
+        ("rct", "rct.bogus=1", "--option rct.bogus=1: tracker 'rct' has no option 'bogus'"),
+        ("rct", "rct.cluster_size=-1", "--option rct.cluster_size=-1: Input should be greater than 0"),
+        ("rct", "rct.cluster_size=abc", "--option rct.cluster_size=abc: Input should be a valid number"),
+        ("test-still", "test-still.bogus=1", "--option test-still.bogus=1: tracker 'test-still' takes no options"),
+        ("sctn", "sctn.bogus=1", "--option sctn.bogus=1: tracker 'sctn' has no option 'bogus'"),
+        ("sctn", "sctn.crop=foo", "--option sctn.crop=foo: Input should be 'bilinear' or 'nearest'"),
+        ("sctn", "sctn.fast=maybe", "--option sctn.fast=maybe: Input should be a valid boolean"),
+        ("sctn", "sctn.n_candidates=0", "--option sctn.n_candidates=0: Input should be greater than or equal to 1"),
+        ("sctn", "sctn.trans=.nan", "--option sctn.trans=.nan: Input should be a finite number"),
+    ]
     for tracker, option, words in cases:
         fails_cleanly(tmp_path, capsys, ["--tracker", tracker, *data, "--option", option], words)
 
@@ -248,7 +250,9 @@ def test_a_tracker_crash_is_reported_and_exits_1(tmp_path, capsys):
 def test_option_values_read_as_yaml():
     from benchmarks.bench.plan import _options
 
-    opts = _options(["sctn.fast=False", "sctn.trans=1e-1", "rct.cluster_size=0.05", "sctn.crop=nearest"], ["sctn", "rct"])
+    opts = _options(
+        ["sctn.fast=False", "sctn.trans=1e-1", "rct.cluster_size=0.05", "sctn.crop=nearest"], ["sctn", "rct"]
+    )
     assert opts == {"sctn": {"fast": False, "trans": 0.1, "crop": "nearest"}, "rct": {"cluster_size": 0.05}}
 
 
@@ -262,7 +266,24 @@ def test_bench_on_a_dask_local_cluster_gives_the_same_results(tmp_path):
     res = {}
     for how in (["--jobs", "1"], ["--scheduler", "local:1"]):
         out = tmp_path / how[1].replace(":", "")
-        assert main(["bench", "--tracker", "rct", "--data", str(data), "--out", str(out), "--quiet", "--max-segments", "8", *how]) == 0
+        assert (
+            main(
+                [
+                    "bench",
+                    "--tracker",
+                    "rct",
+                    "--data",
+                    str(data),
+                    "--out",
+                    str(out),
+                    "--quiet",
+                    "--max-segments",
+                    "8",
+                    *how,
+                ]
+            )
+            == 0
+        )
         res[how[0]] = {s: {k: v[k] for k in ("A", "R", "segments")}
                        for s, v in json.loads((out / "results.json").read_text())["rct"].items()}
     assert res["--jobs"] == res["--scheduler"] and set(res["--jobs"]) >= {"a", "b"}

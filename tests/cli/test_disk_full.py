@@ -5,9 +5,9 @@ small tmpfs mounts (root only; skipped elsewhere)."""
 import subprocess
 
 import pytest
+from synthetic import linear_path, tiny_scene
 
 from dvsot.cli import main
-from synthetic import linear_path, tiny_scene
 
 pytestmark = pytest.mark.blender
 

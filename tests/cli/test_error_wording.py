@@ -13,10 +13,10 @@ import time
 import h5py
 import numpy as np
 import pytest
+from synthetic import MINIMAL_SCENE
 
 from dvsot.cli import main
 from dvsot.dataset import DatasetWriter
-from synthetic import MINIMAL_SCENE
 
 
 def error_line(argv, capsys) -> str:
@@ -64,7 +64,9 @@ def test_a_bad_format_version_names_the_attribute(tmp_path, capsys, value):
 
 def test_an_interrupted_bar_is_not_redrawn_under_the_message(tmp_path):
     np.save(tmp_path / "s.npy", np.random.default_rng(0).random((3000, 24, 32), dtype=np.float32))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p))  # not bpy's script folders: they hide bpy
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p)
+    )  # not bpy's script folders: they hide bpy
     proc = subprocess.Popen([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "s.npy"), "--fps", "1000",
                              "-o", str(tmp_path / "o.h5")], stderr=subprocess.PIPE, env=env)
     chunks: list[bytes] = []
@@ -92,7 +94,9 @@ def test_a_checkpoint_or_timestamps_that_are_not_regular_files_are_named(tmp_pat
     assert "ck.pt: is a directory, not a checkpoint file" in err, err
     np.save(tmp_path / "s.npy", np.zeros((3, 4, 4), np.float32))
     os.mkfifo(tmp_path / "t.txt")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p))  # not bpy's script folders: they hide bpy
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p)
+    )  # not bpy's script folders: they hide bpy
     r = subprocess.run([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "s.npy"), "--timestamps",
                         str(tmp_path / "t.txt"), "-o", str(tmp_path / "o.h5")], capture_output=True, text=True,
                        timeout=60, env=env)
@@ -103,7 +107,9 @@ def test_an_error_mid_run_is_the_last_line_not_the_bar(tmp_path):
     stack = np.random.default_rng(0).random((40, 24, 32), dtype=np.float32)
     stack[30, 3, 3] = np.nan  # a bad frame after the bar has been drawn
     np.save(tmp_path / "s.npy", stack)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p))  # not bpy's script folders: they hide bpy
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p)
+    )  # not bpy's script folders: they hide bpy
     r = subprocess.run([sys.executable, "-m", "dvsot.cli", "simulate", str(tmp_path / "s.npy"), "--fps", "1000",
                         "-o", str(tmp_path / "o.h5")], capture_output=True, text=True, timeout=300, env=env)
     last = r.stderr.rstrip("\n").split("\n")[-1]

@@ -9,9 +9,9 @@ import sys
 import time
 
 import pytest
+from synthetic import MINIMAL_SCENE
 
 from dvsot.cli import main
-from synthetic import MINIMAL_SCENE
 
 
 def test_a_huge_scene_file_is_refused_at_once_naming_the_bound(tmp_path, capsys):
@@ -30,7 +30,9 @@ def test_a_huge_scene_file_is_refused_at_once_naming_the_bound(tmp_path, capsys)
 def test_a_scene_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
     scene = tmp_path / "s.yaml"
     os.mkfifo(scene)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p))  # not bpy's script folders: they hide bpy
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p)
+    )  # not bpy's script folders: they hide bpy
     r = subprocess.run([sys.executable, "-m", "dvsot.cli", "generate", str(scene), "-o", str(tmp_path / "o.h5")],
                        capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 2 and "is a FIFO (named pipe), not a scene file" in r.stderr, r.stderr
@@ -40,7 +42,9 @@ def test_a_scene_fifo_is_refused_without_waiting_for_a_writer(tmp_path):
 def test_generate_says_what_it_does_before_the_bar(tmp_path):
     scene = tmp_path / "s.yaml"
     scene.write_text(MINIMAL_SCENE.replace("duration_s: 0.1", "duration_s: 0.02\nsensor: {width: 32, height: 24}"))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p))  # not bpy's script folders: they hide bpy
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p and f"{os.sep}bpy{os.sep}" not in p)
+    )  # not bpy's script folders: they hide bpy
     r = subprocess.run([sys.executable, "-m", "dvsot.cli", "generate", str(scene), "-o", str(tmp_path / "o.h5")],
                        capture_output=True, text=True, timeout=300, env=env)
     assert r.returncode == 0, r.stderr

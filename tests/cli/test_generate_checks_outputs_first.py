@@ -3,9 +3,9 @@
 import hashlib
 
 import pytest
+from synthetic import MINIMAL_SCENE
 
 from dvsot.cli import main
-from synthetic import MINIMAL_SCENE
 
 SCENE = MINIMAL_SCENE.replace("duration_s: 0.1", "duration_s: 0.02\nsensor: {width: 64, height: 48}")
 

@@ -13,8 +13,9 @@ import pytest
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from dvsot.cli import main  # noqa: E402
 from synthetic import MINIMAL_SCENE, moving_square_file  # noqa: E402
+
+from dvsot.cli import main  # noqa: E402
 
 SHIPPED = Path(__file__).resolve().parents[2] / "sctn" / "checkpoints" / "sctn_dvsot21.pt"
 

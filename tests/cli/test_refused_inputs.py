@@ -4,7 +4,6 @@ with one line naming the file or flag (exit 2) or kept exactly, driven through t
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from dvsot.cli import main
 from dvsot.dataset import Dataset
@@ -146,11 +145,11 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
     import zlib
 
     import h5py
+    from synthetic import MINIMAL_SCENE
 
     from dvsot.core import bounds
     from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
     from dvsot.dataset.format import decode_attr
-    from synthetic import MINIMAL_SCENE
 
     # a small file declaring 33 million events at t = 0 whose chunks were never written (they read as zeros)
     path = _small_file(tmp_path / "big.h5", t=np.zeros(100))
@@ -173,24 +172,45 @@ def test_sizes_from_files_and_flags_are_bounded_before_any_work(tmp_path, capsys
     csv = tmp_path / "e.csv"
     csv.write_text("1000,1,2,1\n2000,3,4,0\n")
     for argv, words in (
-            (["generate", template, "--variants", "3000000", "--dry-run"], ("--variants", str(bounds.MAX_VARIANTS))),
-            (["generate", str(scene), "--jobs", "1000000"], ("--jobs", str(bounds.MAX_WORKERS))),
-            (["generate", template, "--variants", "2", "--scheduler", "local:100000", "--out-dir", str(tmp_path / "o")],
-             ("local:N", str(bounds.MAX_WORKERS))),
-            (["bench", "--tracker", "kcf", "--jobs", "1000000", "--data", str(_small_file(tmp_path / "ok.h5"))],
-             ("--jobs", str(bounds.MAX_WORKERS))),
-            (["import", str(csv), "--size", "32x32", "--segment-us", str(10**15), "-o", str(tmp_path / "i.h5")],
-             ("--segment-us", str(bounds.MAX_SEGMENT_US))),
-            (["simulate", str(tmp_path / "frames"), "--fps", "1000", "--segment-us", str(10**15),
-              "-o", str(tmp_path / "s.h5")], ("--segment-us", str(bounds.MAX_SEGMENT_US))),
-            (["train", "--data", str(tmp_path / "ok.h5"), "--threads", "100000"],
-             ("--threads", str(bounds.MAX_THREADS))),
-            (["train", "--data", str(tmp_path / "ok.h5"), "--tail-steps", "1000000000"],
-             ("--tail-steps", str(bounds.MAX_TAIL_STEPS))),
-            (["train", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
-            (["train", "--model", "siamfc", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
-            (["import", str(csv), "--size", "65536x65536", "-o", str(tmp_path / "i.h5")],
-             ("--size", str(bounds.MAX_SENSOR_PIXELS)))):
+        (["generate", template, "--variants", "3000000", "--dry-run"], ("--variants", str(bounds.MAX_VARIANTS))),
+        (["generate", str(scene), "--jobs", "1000000"], ("--jobs", str(bounds.MAX_WORKERS))),
+        (
+            ["generate", template, "--variants", "2", "--scheduler", "local:100000", "--out-dir", str(tmp_path / "o")],
+            ("local:N", str(bounds.MAX_WORKERS)),
+        ),
+        (
+            ["bench", "--tracker", "kcf", "--jobs", "1000000", "--data", str(_small_file(tmp_path / "ok.h5"))],
+            ("--jobs", str(bounds.MAX_WORKERS)),
+        ),
+        (
+            ["import", str(csv), "--size", "32x32", "--segment-us", str(10**15), "-o", str(tmp_path / "i.h5")],
+            ("--segment-us", str(bounds.MAX_SEGMENT_US)),
+        ),
+        (
+            [
+                "simulate",
+                str(tmp_path / "frames"),
+                "--fps",
+                "1000",
+                "--segment-us",
+                str(10**15),
+                "-o",
+                str(tmp_path / "s.h5"),
+            ],
+            ("--segment-us", str(bounds.MAX_SEGMENT_US)),
+        ),
+        (["train", "--data", str(tmp_path / "ok.h5"), "--threads", "100000"], ("--threads", str(bounds.MAX_THREADS))),
+        (
+            ["train", "--data", str(tmp_path / "ok.h5"), "--tail-steps", "1000000000"],
+            ("--tail-steps", str(bounds.MAX_TAIL_STEPS)),
+        ),
+        (["train", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
+        (["train", "--model", "siamfc", "--data", str(tmp_path / "ok.h5"), "--lr", "1e38"], ("--lr", "1e+38", "1.0")),
+        (
+            ["import", str(csv), "--size", "65536x65536", "-o", str(tmp_path / "i.h5")],
+            ("--size", str(bounds.MAX_SENSOR_PIXELS)),
+        ),
+    ):
         _refused(argv, capsys, *words)
     # a TXT header of 65536x65536: refused on its line before its events are read
     txt = tmp_path / "e.txt"
@@ -219,11 +239,11 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     import os
 
     import h5py
+    from synthetic import MINIMAL_SCENE
 
     from dvsot.core import bounds
     from dvsot.dataset.digest import DIGEST_ATTR, attrs_digest
     from dvsot.dataset.format import decode_attr
-    from synthetic import MINIMAL_SCENE
 
     def rewrite(path, **datasets) -> None:
         """Overwrite datasets of a dataset file in place (the digest covers attributes only)."""
@@ -255,14 +275,23 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     # a file with no segment is not written: a recording shorter than one segment
     csv = tmp_path / "e.csv"
     csv.write_text("1000,1,2,1\n2000,3,4,0\n")
-    _refused(["import", str(csv), "--size", "32x32", "-o", str(tmp_path / "e.h5")], capsys, "--segment-us", "no segment")
+    _refused(
+        ["import", str(csv), "--size", "32x32", "-o", str(tmp_path / "e.h5")], capsys, "--segment-us", "no segment"
+    )
     scene = tmp_path / "s.yaml"
     scene.write_text(MINIMAL_SCENE)
-    _refused(["generate", str(scene), "--duration", "0.005", "-o", str(tmp_path / "g.h5")], capsys, "segment_ms", "no segment")
+    _refused(
+        ["generate", str(scene), "--duration", "0.005", "-o", str(tmp_path / "g.h5")],
+        capsys,
+        "segment_ms",
+        "no segment",
+    )
     # -o on a symlink loop; -o beside --out-dir
     loop = tmp_path / "loop.h5"
     os.symlink(loop.name, loop)
-    _refused(["import", str(csv), "--size", "32x32", "--segment-us", "1000", "-o", str(loop)], capsys, str(loop), "link")
+    _refused(
+        ["import", str(csv), "--size", "32x32", "--segment-us", "1000", "-o", str(loop)], capsys, str(loop), "link"
+    )
     assert loop.is_symlink() and os.readlink(loop) == loop.name
     _refused(["generate", str(scene), "--out-dir", str(loop)], capsys, str(loop), "link")
     _refused(["generate", str(scene), "-o", str(tmp_path / "g.h5"), "--out-dir", str(tmp_path / "d")], capsys,
@@ -276,4 +305,6 @@ def test_inputs_that_used_to_be_accepted_are_refused(tmp_path, capsys):
     np.save(tmp_path / "f.npy", np.linspace(0.1, 0.9, 20 * 8 * 8, dtype=np.float32).reshape(20, 8, 8))
     _refused(["simulate", str(tmp_path / "f.npy"), "--fps", "1000", "--cp", "1e308", "-o", str(tmp_path / "f.h5")],
              capsys, "--cp", str(bounds.MAX_CONTRAST)[:3])
-    assert not any(p.suffix == ".h5" and p.name not in ("thin.h5", "late.h5", "ok.h5", "loop.h5") for p in tmp_path.iterdir())
+    assert not any(
+        p.suffix == ".h5" and p.name not in ("thin.h5", "late.h5", "ok.h5", "loop.h5") for p in tmp_path.iterdir()
+    )

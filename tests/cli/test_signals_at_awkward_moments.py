@@ -3,11 +3,9 @@ error and drops the KeyboardInterrupt, as pyo3 and numpy's C API do), while benc
 run's final renames have begun (the run completed: it says so and exits 0)."""
 
 import json
-import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest

@@ -228,8 +228,24 @@ def test_bad_boxes_name_the_file_and_line(tmp_path, capsys, rows, words):
 def test_boxes_that_are_all_nan_mean_no_target(tmp_path, capsys):
     np.save(tmp_path / "ok.npy", stack(5))
     (tmp_path / "b.csv").write_text("0,1,1,5,5\n0.002,nan,nan,nan,nan\n")
-    assert main(["simulate", str(tmp_path / "ok.npy"), "--fps", "1000", "--segment-us", "1000", "-o", str(tmp_path / "x.h5"), "--quiet",
-                 "--boxes", str(tmp_path / "b.csv")]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                str(tmp_path / "ok.npy"),
+                "--fps",
+                "1000",
+                "--segment-us",
+                "1000",
+                "-o",
+                str(tmp_path / "x.h5"),
+                "--quiet",
+                "--boxes",
+                str(tmp_path / "b.csv"),
+            ]
+        )
+        == 0
+    )
     with Dataset(tmp_path / "x.h5") as ds:
         assert np.isnan(ds.boxes().xywh[1]).all()
 

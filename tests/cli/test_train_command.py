@@ -93,8 +93,12 @@ def test_output_that_is_a_data_file_is_refused(data, tmp_path, capsys, no_traini
                    capsys)
     copy = tmp_path / "d.json"  # a data file in the metadata's place
     copy.write_bytes(data.read_bytes())
-    assert_refused(["--data", str(copy), "--split", "any", "-o", str(tmp_path / "d.pt"), "--quiet"], ["d.json", "input"],
-                   [tmp_path, data.parent], capsys)
+    assert_refused(
+        ["--data", str(copy), "--split", "any", "-o", str(tmp_path / "d.pt"), "--quiet"],
+        ["d.json", "input"],
+        [tmp_path, data.parent],
+        capsys,
+    )
 
 
 def test_tiny_run_writes_the_checkpoint_and_its_metadata(data, tmp_path, capsys):
@@ -133,8 +137,9 @@ def test_a_silent_network_is_refused_and_the_old_checkpoint_kept(data, tmp_path,
                 p.zero_()
         with sctn.training.snn.Dataset(files[0]) as ds:
             segs = [ds.segment(i) for i in sctn.training.snn.usable_segments(ds, cfg.min_box_px)[:2]]
-        x, iou, pos = sctn.training.snn.segment_batch([(s.events, s.t0_us, s.box) for s in segs], [(64, 48)] * len(segs),
-                                               np.random.default_rng(0), model.cfg)
+        x, iou, pos = sctn.training.snn.segment_batch(
+            [(s.events, s.t0_us, s.box) for s in segs], [(64, 48)] * len(segs), np.random.default_rng(0), model.cfg
+        )
         final = sctn.training.snn.evaluate(model, x, iou, pos, cfg)
         assert final["vmax_max"] == 0.0  # zero weights: no current, no voltage, on every sample
         return model, {"val": [final], "silent": final["vmax_max"] <= 0, "steps": 0, "minutes": 0.0,
@@ -179,7 +184,8 @@ def test_every_model_takes_the_validation_flags_and_draws_a_curve(data, tmp_path
     """The twin and SiamFC validate on --val-data as SCTN does: every --val-every steps the validation figures and
     the training loss since the last one, every --val-arscore-every steps and at the end the validation ARscore, in
     the checkpoint's .json that learning_curves reads."""
-    from benchmarks.analysis.learning_curves import main as curves_main, read_curves
+    from benchmarks.analysis.learning_curves import main as curves_main
+    from benchmarks.analysis.learning_curves import read_curves
 
     val = moving_square_file(tmp_path / "val.h5", width=64, height=48, size=12, duration_ms=40,
                              velocity_px_s=(-80.0, 30.0), start=(40.0, 10.0), split="val", seed=3)

@@ -6,11 +6,11 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
+from synthetic import MINIMAL_SCENE
 
 from dvsot.cli import main
 from dvsot.dataset import DatasetWriter
 from dvsot.events import EventBatch
-from synthetic import MINIMAL_SCENE
 
 
 def refused(argv, capsys, *words) -> str:

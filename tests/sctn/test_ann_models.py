@@ -90,8 +90,8 @@ def twin_run(tmp_path_factory):
 
 def test_twin_trains_with_sctns_loss_and_tracks_with_sctns_tracker(twin_run):
     from benchmarks.trackers import get_tracker
-    from dvsot.dataset.boxes import iou_xywh
     from dvsot.dataset import Dataset
+    from dvsot.dataset.boxes import iou_xywh
 
     model, history, test_file, d = twin_run
     assert history["calibration"] is None and np.mean(history["train_loss"][-3:]) < np.mean(history["train_loss"][:3])

@@ -59,5 +59,7 @@ def test_an_unknown_shipped_name_is_refused_naming_the_choices():
     from sctn.checkpoint import SHIPPED, shipped_checkpoint_path
 
     assert all(shipped_checkpoint_path(name).is_file() for name in SHIPPED)
-    with pytest.raises(UserError, match=r"'nope': no shipped SCTN checkpoint of that name \(choose from dvsot21, varied\)"):
+    with pytest.raises(
+        UserError, match=r"'nope': no shipped SCTN checkpoint of that name \(choose from dvsot21, varied\)"
+    ):
         shipped_checkpoint_path("nope")

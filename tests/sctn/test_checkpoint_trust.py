@@ -13,8 +13,16 @@ import torch
 
 from dvsot.cli import main
 from dvsot.core.errors import RunError, UserError
-from sctn.checkpoint import (DIGEST_KEY, UndigestedCheckpointWarning, default_checkpoint_path, load_checkpoint,
-                             metadata_path, save_checkpoint, shipped_checkpoint_path, weights_digest)
+from sctn.checkpoint import (
+    DIGEST_KEY,
+    UndigestedCheckpointWarning,
+    default_checkpoint_path,
+    load_checkpoint,
+    metadata_path,
+    save_checkpoint,
+    shipped_checkpoint_path,
+    weights_digest,
+)
 from sctn.network import SCTN, NetworkConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))

@@ -59,7 +59,9 @@ def test_fast_search_masks_cells_outside_each_box_and_leaves_out_cells_no_box_ke
     net, region = _small_calibrated_net(2)
     # aligned canvases (integer cells), boxes of different sizes: different masks, none the full canvas
     origins = torch.tensor([[0.0, 0.0], [8.0, 16.0], [16.0, 8.0]])
-    boxes = torch.tensor([[30.0, 35.0, 40.0, 30.0], [8 + 20.0, 16 + 25.0, 60.0, 50.0], [16 + 40.0, 8 + 40.0, 20.0, 20.0]])
+    boxes = torch.tensor(
+        [[30.0, 35.0, 40.0, 30.0], [8 + 20.0, 16 + 25.0, 60.0, 50.0], [16 + 40.0, 8 + 40.0, 20.0, 20.0]]
+    )
     for crop in ("nearest", "bilinear"):  # aligned: both crops are the same cells
         with torch.no_grad():
             v_fast, rec = net.forward_search(region, origins, boxes, record=True, crop=crop)
@@ -101,9 +103,15 @@ def test_bilinear_crops_equal_grid_sampling_of_the_spike_map():
         gx = (origins[:, 0:1] / stride + cell) / (fw - 1) * 2 - 1
         gy = (origins[:, 1:2] / stride + cell) / (fh - 1) * 2 - 1
         centre = stride * cell + rf / 2
-        keep_x = (origins[:, 0:1] + centre >= boxes[:, 0:1]) & (origins[:, 0:1] + centre < boxes[:, 0:1] + boxes[:, 2:3])
-        keep_y = (origins[:, 1:2] + centre >= boxes[:, 1:2]) & (origins[:, 1:2] + centre < boxes[:, 1:2] + boxes[:, 3:4])
-        grid = torch.stack([gx[:, None, :].expand(30, n_cells, n_cells), gy[:, :, None].expand(30, n_cells, n_cells)], -1)
+        keep_x = (origins[:, 0:1] + centre >= boxes[:, 0:1]) & (
+            origins[:, 0:1] + centre < boxes[:, 0:1] + boxes[:, 2:3]
+        )
+        keep_y = (origins[:, 1:2] + centre >= boxes[:, 1:2]) & (
+            origins[:, 1:2] + centre < boxes[:, 1:2] + boxes[:, 3:4]
+        )
+        grid = torch.stack(
+            [gx[:, None, :].expand(30, n_cells, n_cells), gy[:, :, None].expand(30, n_cells, n_cells)], -1
+        )
         sampled = torch.stack([torch.nn.functional.grid_sample(f[None].expand(30, -1, -1, -1), grid, align_corners=True)
                                for f in feat])  # (T, N, C, cells, cells)
         h = (sampled * (keep_y[:, :, None] & keep_x[:, None, :])[None, :, None]).flatten(2)
@@ -133,8 +141,9 @@ def test_search_region_covers_what_the_kept_cells_see():
             assert region.shape[-1] * region.shape[-2] < 0.85 * canvases
         # the same search on a region 3 cells larger on every side (the whole canvases and more)
         pad = 3 * 8
-        big = encode_region(ev, 0, corner - pad / scale, scale, (region.shape[-2] + 2 * pad, region.shape[-1] + 2 * pad),
-                            tail2)
+        big = encode_region(
+            ev, 0, corner - pad / scale, scale, (region.shape[-2] + 2 * pad, region.shape[-1] + 2 * pad), tail2
+        )
         for crop in ("nearest", "bilinear"):
             with torch.no_grad():
                 v = net.forward_search(region, origins, rboxes, crop=crop)

@@ -48,8 +48,11 @@ def test_fc_only_leaves_the_convolutions_and_their_neurons_alone(segment) -> Non
     before = {k: v.clone() for k, v in net.state_dict().items()}
     finetune(net, seg.events, seg.t0_us, seg.box, wh, np.random.default_rng(0), iters=2, layers="fc")
     after = net.state_dict()
-    conv_keys = [k for k in before if k.startswith("convs.") or k.split(".")[:2] in (["neurons", "0"],
-                                                                                     ["neurons", "1"], ["neurons", "2"])]
+    conv_keys = [
+        k
+        for k in before
+        if k.startswith("convs.") or k.split(".")[:2] in (["neurons", "0"], ["neurons", "1"], ["neurons", "2"])
+    ]
     assert conv_keys and all(torch.equal(before[k], after[k]) for k in conv_keys)
     assert any(not torch.equal(before[k], after[k]) for k in before if k.startswith("fcs."))
     with pytest.raises(ValueError, match="fine-tuning layers"):

@@ -16,8 +16,8 @@ from dvsot.cli import main
 from dvsot.core.errors import RunError
 from sctn.checkpoint import default_checkpoint_path, load_checkpoint
 from sctn.encoding import encode_boxes
-from sctn.neurons import psp_kernel
 from sctn.network import SCTN, NetworkConfig
+from sctn.neurons import psp_kernel
 from sctn.nir_export import DT_S, LAYER_NAMES, TARGET, clif_constants, cubalif_constants, export_nir, sctn_graph
 from sctn.nir_sim import run_graph
 from sctn.samples import TRACK, propose

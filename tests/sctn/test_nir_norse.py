@@ -26,8 +26,12 @@ def test_norse_runs_the_euler_graph_as_dvsot(tmp_path):
     data = moving_square_file(tmp_path / "square.h5", duration_ms=40, size=40)
     out = tmp_path / "check"
     reference([data], out, None, segments=2, candidates=4, seed=0)
-    subprocess.run([NORSE_PYTHON, str(ROOT / "benchmarks" / "experiments" / "nir_check.py"), "norse", "--out", str(out)],
-                   check=True, capture_output=True, env={**os.environ, "PYTHONPATH": ""})
+    subprocess.run(
+        [NORSE_PYTHON, str(ROOT / "benchmarks" / "experiments" / "nir_check.py"), "norse", "--out", str(out)],
+        check=True,
+        capture_output=True,
+        env={**os.environ, "PYTHONPATH": ""},
+    )
     runs = json.loads((out / "norse.json").read_text())
     (same,) = [r for name, r in runs.items() if name.endswith("euler graph, reset_subtract")]
     assert all(layer["differ"] == 0 for layer in same["layers"].values()), same

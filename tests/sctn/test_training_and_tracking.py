@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import torch
 
-from dvsot.dataset.boxes import iou_xywh
 from dvsot.cli import main
-from dvsot.dataset import Dataset
 from dvsot.core.errors import RunError
+from dvsot.dataset import Dataset
+from dvsot.dataset.boxes import iou_xywh
 from sctn.checkpoint import load_checkpoint, save_checkpoint
 from sctn.samples import FINETUNE, TRACK, TRAIN, SampleSpec, draw_samples, labelled_samples
 from sctn.tracker import SCTNTracker

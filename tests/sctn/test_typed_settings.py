@@ -75,8 +75,10 @@ def test_the_ablation_table_counts_silent_seeds():
     """A seed whose network ended silent stays in the row's mean and is counted in its own column."""
     from benchmarks.experiments.ablation import format_table, summarise
 
-    runs = [{"row": "paper", "seed": 0, "A": 0.7, "R": 0.9, "ARscore": 0.88, "ac_ops_per_segment": 1e8, "silent": False},
-            {"row": "paper", "seed": 1, "A": 0.5, "R": 0.5, "ARscore": 0.50, "ac_ops_per_segment": None, "silent": True}]
+    runs = [
+        {"row": "paper", "seed": 0, "A": 0.7, "R": 0.9, "ARscore": 0.88, "ac_ops_per_segment": 1e8, "silent": False},
+        {"row": "paper", "seed": 1, "A": 0.5, "R": 0.5, "ARscore": 0.50, "ac_ops_per_segment": None, "silent": True},
+    ]
     s = summarise(runs)["paper"]
     assert s["seeds"] == 2 and s["silent"] == 1 and abs(s["mean"]["ARscore"] - 0.69) < 1e-12
     assert format_table(summarise(runs)).splitlines()[-1].endswith("| 1.00e+08 |  | 2 | 1 | 0 |")  # no speed given

@@ -3,8 +3,8 @@ validation (benchmarks/trackers/ocean/train.py train_anchor_free) on AutoMatch's
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from pydantic import Field
 from torch import nn

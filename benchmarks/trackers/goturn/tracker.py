@@ -43,7 +43,7 @@ class GOTURNTracker(Tracker):
         self._start(load_goturn(opts.checkpoint)[0])
 
     @classmethod
-    def from_model(cls, model: GOTURN) -> "GOTURNTracker":
+    def from_model(cls, model: GOTURN) -> GOTURNTracker:
         """The tracker on a network in memory (one being trained); the network is read, never changed."""
         self = cls.__new__(cls)
         self._start(model)

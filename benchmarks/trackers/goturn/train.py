@@ -10,8 +10,8 @@ Adam.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
@@ -24,6 +24,7 @@ from benchmarks.trackers.pair_training import train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames
 from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget
+
 
 class GOTURNTrainConfig(TrainBudget):
     """GOTURN training settings: TrainBudget's with these defaults, the motion augmentation and the network."""

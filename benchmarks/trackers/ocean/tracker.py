@@ -69,7 +69,7 @@ class AnchorFreeTracker(Tracker):
         self._start(type(self).load(opts.checkpoint)[0], opts)
 
     @classmethod
-    def from_model(cls, model: torch.nn.Module, **options) -> "AnchorFreeTracker":
+    def from_model(cls, model: torch.nn.Module, **options) -> AnchorFreeTracker:
         """The tracker on a network in memory (one being trained); the network is read, never changed."""
         opts = AnchorFreeOptions(**options)
         if opts.checkpoint is not None:

@@ -16,13 +16,13 @@ import numpy as np
 import torch
 from pydantic import Field
 
+from benchmarks.trackers import register
 from benchmarks.trackers.atsltd import atsltd_frame
+from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC
-from benchmarks.trackers import register
-from benchmarks.trackers.base import Tracker
-from dvsot.dataset import Segment
 from dvsot.core.strict import Float, Int, Strict
+from dvsot.dataset import Segment
 
 MIN_SIZE_PX = 4.0
 
@@ -82,7 +82,7 @@ class SiamFCTracker(Tracker):
         self._start(load_siamfc(opts.checkpoint)[0], opts)
 
     @classmethod
-    def from_model(cls, model: SiamFC, **options) -> "SiamFCTracker":
+    def from_model(cls, model: SiamFC, **options) -> SiamFCTracker:
         """The tracker on a network in memory (one being trained, for its validation score); `options` as
         SiamFCOptions less the checkpoint. The network is read, never changed."""
         opts = SiamFCOptions(**options)

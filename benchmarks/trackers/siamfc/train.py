@@ -15,9 +15,9 @@ half each (SiamFC). Adam. Frames are computed once per segment and kept sparse.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch

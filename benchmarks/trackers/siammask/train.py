@@ -11,9 +11,9 @@ filled as the mask: the history's `mask_sources` says which files did.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch
@@ -25,8 +25,8 @@ from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from benchmarks.trackers.siammask.masks import mask_targets
 from benchmarks.trackers.siammask.model import SiamMask, SiamMaskConfig
 from benchmarks.trackers.siamrpn.anchors import make_anchors
-from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
 from benchmarks.trackers.siamrpn.crops import search_crop, search_window, template_crop
+from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
 from benchmarks.trackers.siamrpn.train import SiamRPNTrainConfig, best_boxes, box_iou_cxcywh, rpn_loss, rpn_targets
 
 

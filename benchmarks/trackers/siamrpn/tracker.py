@@ -79,7 +79,7 @@ class RPNTracker(Tracker):
         return load_siamrpn(path)
 
     @classmethod
-    def from_model(cls, model: torch.nn.Module, **options) -> "RPNTracker":
+    def from_model(cls, model: torch.nn.Module, **options) -> RPNTracker:
         """The tracker on a network in memory (one being trained); the network is read, never changed."""
         opts = cls.options_type(**options)
         if opts.checkpoint is not None:

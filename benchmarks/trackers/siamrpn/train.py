@@ -9,8 +9,8 @@ scores plus `reg_weight` x smooth L1 of the positive anchors' offsets. Adam.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch

@@ -11,8 +11,8 @@ import numpy as np
 
 from dvsot.render.blender.materials import PRESETS, albedo_and_emission
 from dvsot.render.blender.quiet import quiet_stdout
-from dvsot.scene import Render, Texture
 from dvsot.render.plane_view import bake_sides, plane_uvs
+from dvsot.scene import Render, Texture
 
 # Textures cheap to evaluate and made of sharp edges (bricks, checkers): baking gains little there
 # (docs/results.md) and resamples their sub-pixel edges, so "auto" leaves them procedural.

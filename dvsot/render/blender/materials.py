@@ -7,8 +7,8 @@ import warnings
 
 import bpy
 
-from dvsot.scene import Material, Texture
 from dvsot.core.errors import UserError
+from dvsot.scene import Material, Texture
 
 # Presets of look-alike backgrounds: (base texture, node settings, output, default colour ramp).
 PRESETS: dict[str, tuple[str, dict, str, list]] = {

@@ -36,14 +36,14 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from dvsot.core.errors import RunError, exception_line
+from dvsot.events.labels import TARGET_ID
 from dvsot.render.blender.bake import bake_background, should_bake
 from dvsot.render.blender.materials import direct_lighting, material, texture_colour
 from dvsot.render.blender.quiet import captured_output, quiet_stdout
-from dvsot.scene import Background, SceneConfig, SceneObject, Texture
-from dvsot.core.errors import RunError, exception_line
-from dvsot.events.labels import TARGET_ID
 from dvsot.render.plane_view import seen_part
 from dvsot.render.raster import silhouette_coverage, silhouette_mask, triangulate
+from dvsot.scene import Background, SceneConfig, SceneObject, Texture
 from dvsot.scene.shapes import mesh_for
 from dvsot.scene.trajectory import pose_and_scale
 
@@ -97,7 +97,7 @@ class BlenderScene:
         """Remove the temporary render directory."""
         shutil.rmtree(self._tmp, ignore_errors=True)
 
-    def __enter__(self) -> "BlenderScene":
+    def __enter__(self) -> BlenderScene:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -267,9 +267,15 @@ class BlenderScene:
         """The background plane object (kind "plane"); an environment background is the world's."""
         if bg.kind != "plane":
             return
-        plane = SceneObject(shape="plane", size_m=bg.size_m, material=bg.material,
-                            trajectory={"keyframes": [{"t": 0, "location": bg.location, "rotation_deg": bg.rotation_deg}],
-                                        "interpolation": "linear"})
+        plane = SceneObject(
+            shape="plane",
+            size_m=bg.size_m,
+            material=bg.material,
+            trajectory={
+                "keyframes": [{"t": 0, "location": bg.location, "rotation_deg": bg.rotation_deg}],
+                "interpolation": "linear",
+            },
+        )
         self._plane_spec = plane
         self.background_plane = _mesh_object("background", plane, self.collections["background"],
                                              self.cfg.render.surface)

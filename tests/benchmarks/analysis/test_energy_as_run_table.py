@@ -9,8 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.analysis.energy_table import (AS_RUN_BASES, PAPER_CONVENTION, energy_as_run_rows,
-                                              format_energy_as_run)
+from benchmarks.analysis.energy_table import AS_RUN_BASES, PAPER_CONVENTION, energy_as_run_rows, format_energy_as_run
 from benchmarks.evaluation.protocol import SequenceResult
 from sctn.energy_run import energy_as_run
 from tests.synthetic import moving_square_file

@@ -6,8 +6,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from sctn.energy import (E_AC_PJ, E_CLIF_UPDATE_PJ, E_MAC_PJ, count_activations, snn_state_updates,
-                         tracker_energy)
+from sctn.energy import E_AC_PJ, E_CLIF_UPDATE_PJ, E_MAC_PJ, count_activations, snn_state_updates, tracker_energy
 from sctn.network import NetworkConfig
 
 
@@ -48,7 +47,10 @@ def test_paper_rows_restated_both_ways_and_the_twin_with_summed_input() -> None:
     twins = ann_rows(256, twin=SCTNTwin())
     summed = twins["SCTN's ANN twin (sctn_ann, input sum)"]
     assert summed["per_evaluation"]["mac_ops"] == twin_macs(SCTNTwin(TwinConfig(input="sum")))["mac_ops"]
-    assert summed["per_evaluation"]["mac_ops"] < twins["SCTN's ANN twin (sctn_ann, input bins)"]["per_evaluation"]["mac_ops"]
+    assert (
+        summed["per_evaluation"]["mac_ops"]
+        < twins["SCTN's ANN twin (sctn_ann, input bins)"]["per_evaluation"]["mac_ops"]
+    )
 
 
 def test_ablation_rows_for_the_rule_the_inits_and_the_tracker() -> None:
@@ -56,8 +58,12 @@ def test_ablation_rows_for_the_rule_the_inits_and_the_tracker() -> None:
 
     assert ROWS["error_time_max"][0] == {"error_time": "max"} and ROWS["error_time_max"][2] == {"error_time": "max"}
     assert ROWS["calibration"][0] == {"init": "calibrate"} and ROWS["init_fluctuation"][0] == {"init": "fluctuation"}
-    for row, option in (("finetune_balanced", {"finetune_balanced": True}), ("finetune_fc_only", {"finetune_layers": "fc"}),
-                        ("tuned_once", {"reinit": "once"}), ("online_tuning", {"reinit": "online"})):
+    for row, option in (
+        ("finetune_balanced", {"finetune_balanced": True}),
+        ("finetune_fc_only", {"finetune_layers": "fc"}),
+        ("tuned_once", {"reinit": "once"}),
+        ("online_tuning", {"reinit": "online"}),
+    ):
         assert ROWS[row] == ({}, {}, option) and training_key(row) == "paper"  # the preset's networks, tuned otherwise
     assert ROWS["background_term"][0] == {"background_term": True}
 

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.evaluation.protocol import SequenceResult
 from benchmarks.analysis.tables import summarise, terminal, to_csv, to_json, to_latex, to_markdown, write_tables
+from benchmarks.evaluation.protocol import SequenceResult
 
 
 def results():

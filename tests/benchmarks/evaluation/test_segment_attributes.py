@@ -10,10 +10,10 @@ import pytest
 
 from benchmarks.evaluation.attributes import attribute_ope, attribute_scores, segment_attributes
 from benchmarks.evaluation.protocol import SequenceResult
-from dvsot.scene import parse_scene
 from dvsot.dataset import Dataset, DatasetWriter
-from dvsot.events.labels import NOISE_ID, TARGET_ID, object_table
 from dvsot.events import EventBatch
+from dvsot.events.labels import NOISE_ID, TARGET_ID, object_table
+from dvsot.scene import parse_scene
 
 SEG = 10_000  # us
 

@@ -8,8 +8,15 @@ from pathlib import Path
 import pytest
 import torch
 
-from benchmarks.experiments.ablation import (MDNET_WIDTHS, ROWS, format_table, run_one, scaled_widths, summarise,
-                                             training_key)
+from benchmarks.experiments.ablation import (
+    MDNET_WIDTHS,
+    ROWS,
+    format_table,
+    run_one,
+    scaled_widths,
+    summarise,
+    training_key,
+)
 from sctn.checkpoint import load_checkpoint
 from sctn.network import NetworkConfig
 

@@ -41,7 +41,9 @@ def test_the_table_under_two_presets(split, tmp_path, capsys):
     out = tmp_path / "out"
     assert table(data, frames, out, "--preset", "ideal", "--preset", "davis346", "--picture", "b:1") == 0
     assert sorted(p.name for p in (out / "ideal").glob("*.h5")) == ["a.h5", "b.h5"]  # the train sequence: not asked
-    assert (out / "davis346" / "bench" / "results.md").is_file() and (out / "segment.png").read_bytes()[:4] == b"\x89PNG"
+    assert (out / "davis346" / "bench" / "results.md").is_file() and (out / "segment.png").read_bytes()[
+        :4
+    ] == b"\x89PNG"
     with open(out / "table.csv") as f:
         rows = list(csv.DictReader(f))
     assert [(r["tracker"], r["sequence"]) for r in rows] == [("rct", "all"), ("rct", "a"), ("rct", "b")]

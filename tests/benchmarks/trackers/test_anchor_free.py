@@ -249,7 +249,8 @@ def test_train_and_bench_commands(data, tmp_path, capsys):
 
 
 def test_automatch_paper_size_count():
-    from benchmarks.trackers.reference_nets import AutoMatch as PaperAutoMatch, count_siamese
+    from benchmarks.trackers.reference_nets import AutoMatch as PaperAutoMatch
+    from benchmarks.trackers.reference_nets import count_siamese
 
     with torch.device("meta"):
         net = PaperAutoMatch()

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from benchmarks.trackers.frame_based import CSRTTracker, KCFTracker, MILTracker, _opencv_rect
-from dvsot.dataset.boxes import iou_xywh
 from dvsot.dataset import Segment
+from dvsot.dataset.boxes import iou_xywh
 from dvsot.events import EventBatch
 
 W, H = 320, 240

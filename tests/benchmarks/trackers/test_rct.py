@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from benchmarks.trackers.rct import ClusterSet, RCTParams, RCTTracker
-from dvsot.dataset.boxes import iou_xywh
 from dvsot.dataset import Segment
+from dvsot.dataset.boxes import iou_xywh
 from dvsot.events import EventBatch
 
 W, H = 640, 480

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pytest
 import torch
+from synthetic import moving_square_file
 
 import benchmarks
 from benchmarks.training import registry
 from dvsot.cli import build_parser, main
 from dvsot.core.errors import RunError, UserError
-from synthetic import moving_square_file
 
 torch.set_num_threads(1)
 TINY = {"epochs": 1, "segments_per_epoch": 2, "batch_segments": 1, "channels": (2, 2, 2), "fc": (4, 4)}

@@ -9,8 +9,8 @@ import h5py
 import numpy as np
 import pytest
 
-from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.core.errors import UserError
+from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.events import EventParams, EventSimulator
 from dvsot.events.labels import LabelledFrame, object_table
 from dvsot.pipeline.sequence import write_sequence

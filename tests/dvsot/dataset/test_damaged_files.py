@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from dvsot.cli.info import summarise
-from dvsot.dataset import Dataset, DatasetWriter, find_datasets
 from dvsot.core.errors import UserError
+from dvsot.dataset import Dataset, DatasetWriter, find_datasets
 from dvsot.events import EventBatch
 
 W, H, N, DURATION_US = 64, 48, 20_000, 100_000

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from dvsot.dataset import DatasetWriter, open_dataset
-from dvsot.events import EventBatch
 from dvsot.dataset.h5chunks import encode_chunk, fletcher32, shuffle
+from dvsot.events import EventBatch
 
 
 def _fletcher_loop(data: bytes) -> int:

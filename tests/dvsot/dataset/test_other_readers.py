@@ -10,8 +10,8 @@ import h5py
 import numpy as np
 import pytest
 
-from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.core.errors import UserError
+from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.events import EventBatch
 from tests.dvsot.dataset.test_round_trip import random_events
 
@@ -129,7 +129,9 @@ def test_bad_root_entries_name_the_field(recorded, tmp_path, damage, words):
 
 
 def test_writer_refuses_epoch_timestamps_before_allocating(tmp_path):
-    ev = EventBatch(np.zeros(2, np.uint16), np.zeros(2, np.uint16), np.array([OFFSET, OFFSET + 5]), np.ones(2, np.uint8))
+    ev = EventBatch(
+        np.zeros(2, np.uint16), np.zeros(2, np.uint16), np.array([OFFSET, OFFSET + 5]), np.ones(2, np.uint8)
+    )
     with pytest.raises(ValueError, match="rebase the timestamps and keep the start in t_offset_us"):
         with DatasetWriter(tmp_path / "epoch.h5", 64, 48) as w:
             w.append_events(ev)

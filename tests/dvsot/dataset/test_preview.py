@@ -5,8 +5,8 @@ import pytest
 from PIL import Image
 
 from dvsot.dataset import DatasetWriter
-from dvsot.events import EventBatch
 from dvsot.dataset.preview import GT_COLOUR, OFF_COLOUR, ON_COLOUR, PALETTE, draw_box, event_frame, write_preview
+from dvsot.events import EventBatch
 
 
 def _batch(x, y, t, p):

@@ -6,8 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from dvsot.dataset import FORMAT_VERSION, Dataset, DatasetWriter, find_datasets
 from dvsot.core.errors import UserError
+from dvsot.dataset import FORMAT_VERSION, Dataset, DatasetWriter, find_datasets
 from dvsot.events import EventBatch
 
 
@@ -151,8 +151,8 @@ def test_foreign_truncated_and_damaged_files_give_one_line_errors(tmp_path, samp
 
 
 def test_the_read_back_compares_every_stored_chunk_with_the_one_written(tmp_path, monkeypatch):
-    from dvsot.dataset import writer as writer_module
     from dvsot.core.errors import RunError
+    from dvsot.dataset import writer as writer_module
 
     rng = np.random.default_rng(2)
     path = tmp_path / "seq.h5"
@@ -166,7 +166,9 @@ def test_the_read_back_compares_every_stored_chunk_with_the_one_written(tmp_path
         return digest(data[:-1] + bytes([data[-1] ^ 1])) if len(seen) == 2 else digest(data)  # columns x, y, t, p
 
     monkeypatch.setattr(writer_module, "chunk_digest", flipped)
-    with pytest.raises(RunError, match=r"seq\.h5: the file just written failed its read-back check.*chunk 0 of /events/y"):
+    with pytest.raises(
+        RunError, match=r"seq\.h5: the file just written failed its read-back check.*chunk 0 of /events/y"
+    ):
         write_file(path, random_events(rng, 500, 95_000), 100_000, name="new")
     assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["seq.h5"]
     monkeypatch.setattr(writer_module, "chunk_digest", digest)
@@ -177,7 +179,9 @@ def test_the_read_back_compares_every_stored_chunk_with_the_one_written(tmp_path
 
 
 def test_events_off_the_sensor_are_refused_when_appended(tmp_path):
-    ev = EventBatch(np.array([0, 64], np.uint16), np.array([0, 1], np.uint16), np.array([5, 6]), np.array([1, 0], np.uint8))
+    ev = EventBatch(
+        np.array([0, 64], np.uint16), np.array([0, 1], np.uint16), np.array([5, 6]), np.array([1, 0], np.uint8)
+    )
     with pytest.raises(ValueError, match="event x must lie in 0..63"):
         with DatasetWriter(tmp_path / "a.h5", 64, 48) as w:
             w.append_events(ev)

@@ -3,8 +3,14 @@
 import numpy as np
 
 from dvsot.dataset.format import BoxTrack
-from dvsot.dataset.segment_truth import (absent_at, interpolated_rows, interpolated_visibility, matched_rows,
-                                         segment_ends, segment_truth)
+from dvsot.dataset.segment_truth import (
+    absent_at,
+    interpolated_rows,
+    interpolated_visibility,
+    matched_rows,
+    segment_ends,
+    segment_truth,
+)
 
 NAN4 = [np.nan] * 4
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import tonic
 
-from dvsot.events.batch import STRUCTURED_DTYPE, EventBatch
 from dvsot.dataset.tonic_dataset import TonicDataset
 from dvsot.dataset.torchdata import collate_segments
+from dvsot.events.batch import STRUCTURED_DTYPE, EventBatch
 from tests.dvsot.dataset.test_round_trip import write_file
 
 # six events of segment 1 (10..20 ms) of a 64x48 file: t us, x, y, p (1 brighter, 0 darker)

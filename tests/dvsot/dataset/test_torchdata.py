@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from dvsot.dataset import Dataset
-from dvsot.events import STRUCTURED_DTYPE, EventBatch
 from dvsot.dataset.torchdata import SegmentDataset, collate_segments
+from dvsot.events import STRUCTURED_DTYPE, EventBatch
 from tests.dvsot.dataset.test_round_trip import random_events, write_file
 
 

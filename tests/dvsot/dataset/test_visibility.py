@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dvsot.dataset.boxes import mask_visibility
-from dvsot.dataset import Dataset, DatasetWriter
 from dvsot.core.errors import UserError
+from dvsot.dataset import Dataset, DatasetWriter
+from dvsot.dataset.boxes import mask_visibility
 
 NAN4 = [np.nan] * 4
 
@@ -67,7 +67,9 @@ def test_visibility_out_of_range_is_refused(tmp_path):
     with h5py.File(path, "r+") as f:
         del f["segments/visibility"]
         f["segments"].create_dataset("visibility", data=np.full(8, 2.0, np.float32))
-    with pytest.raises(UserError, match=r"v\.h5: damaged dvsot file \(/segments/visibility holds values outside 0\.\.1\)"):
+    with pytest.raises(
+        UserError, match=r"v\.h5: damaged dvsot file \(/segments/visibility holds values outside 0\.\.1\)"
+    ):
         Dataset(path)
 
 

@@ -5,9 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dvsot.events.labels import (BACKGROUND_ID, NOISE_ID, TARGET_ID, EventLabeller, LabelledFrame, event_objects,
-                                object_table)
 from dvsot.events import EventParams, EventSimulator
+from dvsot.events.labels import (
+    BACKGROUND_ID,
+    NOISE_ID,
+    TARGET_ID,
+    EventLabeller,
+    LabelledFrame,
+    event_objects,
+    object_table,
+)
 
 W, H = 32, 20
 DT = 1000  # us between samples
@@ -158,8 +165,8 @@ def _labelled_file(tmp_path):
 def test_label_column_disagreeing_with_its_table_is_refused_on_open(tmp_path, change, message):
     import h5py
 
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
 
     path = _labelled_file(tmp_path)
     with h5py.File(path, "r+") as f:
@@ -216,8 +223,8 @@ def test_info_gives_each_objects_share(tmp_path, capsys):
 def test_label_column_without_its_table_is_refused(tmp_path):
     import h5py
 
-    from dvsot.dataset import Dataset
     from dvsot.core.errors import UserError
+    from dvsot.dataset import Dataset
 
     path = _labelled_file(tmp_path)
     with h5py.File(path, "r+") as f:

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from dvsot.events.kernel import REFRACTORY_SLACK_US, TIE_TOL
 from dvsot.events import EventBatch, EventParams, EventSimulator
+from dvsot.events.kernel import REFRACTORY_SLACK_US, TIE_TOL
 
 
 def dn(values) -> np.ndarray:

@@ -9,8 +9,7 @@ import pytest
 
 from dvsot.cli import main
 from dvsot.core.errors import UserError
-from dvsot.events import EventParams
-from dvsot.events import memory
+from dvsot.events import EventParams, memory
 
 
 def test_estimate_grows_with_pixels_and_noise_events() -> None:

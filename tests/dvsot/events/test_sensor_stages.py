@@ -10,15 +10,17 @@ import numpy as np
 import pytest
 
 from dvsot.core.errors import UserError
-from dvsot.events.batch import NOISE_KINDS, EventBatch
 from dvsot.events import EventParams, EventSimulator
+from dvsot.events.batch import NOISE_KINDS, EventBatch
 from dvsot.events.presets import PRESETS, sensor_on
 from dvsot.events.sensor import front_end, readout
 
 
 def run(params: EventParams, frames, times, width: int, height: int = 1, seed: int = 0, is_log: bool = True):
     sim = EventSimulator(width, height, params, seed)
-    batches = [sim.step(np.asarray(f, np.float64).reshape(height, width), t, is_log=is_log) for f, t in zip(frames, times)]
+    batches = [
+        sim.step(np.asarray(f, np.float64).reshape(height, width), t, is_log=is_log) for f, t in zip(frames, times)
+    ]
     return EventBatch.concatenate(batches), sim
 
 

@@ -12,7 +12,9 @@ from expelliarmus import Wizard
 from dvsot.cli import main
 from dvsot.dataset import Dataset
 
-FE108_LIKE = Path(__file__).resolve().parents[2] / "data" / "fe108_like.aedat4"  # written by tests/data/make_fe108_like.py
+FE108_LIKE = (
+    Path(__file__).resolve().parents[2] / "data" / "fe108_like.aedat4"
+)  # written by tests/data/make_fe108_like.py
 W, H = 64, 48
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from dvsot.dataset import Dataset
-from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
 from dvsot.events import EventParams, EventSimulator
+from dvsot.events.labels import TARGET_ID, LabelledFrame, object_table
 from dvsot.pipeline.sequence import write_sequence
 
 W, H = 24, 16

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic import moving_square_file
 
 from dvsot.cli import main
 from dvsot.core.errors import UserError
 from dvsot.interop.event_files import export_dataset, write_event_file
 from dvsot.interop.recordings import import_recording
-from synthetic import moving_square_file
 
 
 def snapshot(d: Path) -> dict:

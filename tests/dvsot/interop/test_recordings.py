@@ -7,9 +7,9 @@ import pytest
 
 from benchmarks.evaluation.protocol import run_sequence
 from benchmarks.trackers.base import Tracker
-from dvsot.dataset.boxes import match_annotations
 from dvsot.cli import main
 from dvsot.dataset import Dataset
+from dvsot.dataset.boxes import match_annotations
 from dvsot.interop.event_files import write_event_file
 
 W, H = 64, 48
@@ -66,7 +66,11 @@ def test_import_rebases_keeps_annotations_and_absent(recording, tmp_path):
     from dvsot.cli.info import summarise
 
     info = summarise(str(out))
-    assert (info["t_offset_us"], info["ground_truth"], info["segments_matched_to_annotation"]) == (START, "annotations", 5)
+    assert (info["t_offset_us"], info["ground_truth"], info["segments_matched_to_annotation"]) == (
+        START,
+        "annotations",
+        5,
+    )
 
 
 class Keeper(Tracker):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from dvsot.cli import main
-from dvsot.scene import parse_scene
 from dvsot.dataset import Dataset
+from dvsot.scene import parse_scene
 from dvsot.scene.trajectory import pose_matrix, project
 
 pytestmark = pytest.mark.blender
@@ -96,9 +96,13 @@ def test_direct_shading_gives_the_closed_form_lambert_radiance(tmp_path):
     from dvsot.render.blender import BlenderScene
 
     text = SCENE.format(duration=0.02, x0=100.0, x1=100.0, shake=0.0, texture="null")
-    text = text.replace("texture: null, emission: 0.3", "texture: null").replace("[0.1, 0.1, 0.1], texture", "[0.5, 0.4, 0.2], texture")
+    text = text.replace("texture: null, emission: 0.3", "texture: null").replace(
+        "[0.1, 0.1, 0.1], texture", "[0.5, 0.4, 0.2], texture"
+    )
     text = text.replace("lights: []", "lights: [{type: sun, strength: 2.0, rotation_deg: [60, 0, 0]}]")
-    text = text.replace("world: {color: [0.5, 0.5, 0.5], strength: 1.0}", "world: {color: [0.1, 0.1, 0.1], strength: 1.0}")
+    text = text.replace(
+        "world: {color: [0.5, 0.5, 0.5], strength: 1.0}", "world: {color: [0.1, 0.1, 0.1], strength: 1.0}"
+    )
     cfg = parse_scene(text.replace("render: {threads: 2}", "render: {threads: 2, shading: direct}"))
     with BlenderScene(cfg) as sc:
         luma, amodal, _ = sc.render(0.0)
@@ -125,7 +129,9 @@ def _wall_scene(render: str, roughness: float = 0.0, sun_deg: float = 60.0, worl
     text = text.replace("[0.1, 0.1, 0.1], texture: null, emission: 0.3",
                         f"[0.5, 0.4, 0.2], texture: null, roughness: {roughness}")
     text = text.replace("lights: []", f"lights: [{{type: sun, strength: 2.0, rotation_deg: [{sun_deg}, 0, 0]}}]")
-    text = text.replace("world: {color: [0.5, 0.5, 0.5], strength: 1.0}", f"world: {{color: [{world}, {world}, {world}]}}")
+    text = text.replace(
+        "world: {color: [0.5, 0.5, 0.5], strength: 1.0}", f"world: {{color: [{world}, {world}, {world}]}}"
+    )
     return text.replace("render: {threads: 2}", f"render: {{threads: 2, {render}}}")
 
 

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from synthetic import linear_path, tiny_scene
 
 from dvsot.cli import main
 from dvsot.dataset import Dataset
 from dvsot.events.labels import BACKGROUND_ID, NOISE_ID, TARGET_ID
-from synthetic import linear_path, tiny_scene
 
 pytestmark = pytest.mark.blender
 

@@ -89,8 +89,8 @@ def test_coverage_of_nothing_in_front_is_zero():
 
 @pytest.mark.blender
 def test_raster_mask_matches_the_rendered_object_index_layer(tmp_path):
-    from dvsot.render.blender import BlenderScene
     from dvsot.dataset.boxes import box_from_mask
+    from dvsot.render.blender import BlenderScene
     from dvsot.scene import parse_scene
 
     text = """name: cmp

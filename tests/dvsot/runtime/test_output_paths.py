@@ -42,10 +42,9 @@ def test_output_dir(tmp_path):
 
 import json
 import os
-import socket
 
-from dvsot.runtime import staging
 from dvsot.core.errors import RunError
+from dvsot.runtime import staging
 from dvsot.runtime.outputs import replacing, run_outputs
 
 

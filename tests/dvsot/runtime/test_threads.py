@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import dvsot
-from dvsot.runtime.threads import OrderedWorker, read_ahead
-from dvsot.dataset import DatasetWriter, open_dataset
 from dvsot.core.errors import RunError, UserError
+from dvsot.dataset import DatasetWriter, open_dataset
 from dvsot.events import EventParams, EventSimulator, log_intensity
 from dvsot.events.frame_sources import open_frames
+from dvsot.runtime.threads import OrderedWorker, read_ahead
 
 
 def test_ordered_worker_runs_calls_in_order_and_raises_the_first_failure_in_the_caller():

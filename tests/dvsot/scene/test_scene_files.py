@@ -3,10 +3,10 @@
 from pathlib import Path
 
 import pytest
-
-from dvsot.scene import load_scene
-from dvsot.core.errors import UserError
 from synthetic import MINIMAL_SCENE
+
+from dvsot.core.errors import UserError
+from dvsot.scene import load_scene
 
 SCENES = sorted(Path(__file__).resolve().parents[3].joinpath("blender_scenes").glob("*.yaml"))
 GOOD = MINIMAL_SCENE
@@ -25,36 +25,58 @@ def write(tmp_path, text, name="s.yaml"):
     return p
 
 
-@pytest.mark.parametrize("text, words", [
-    (GOOD + "  colour: red\n", ":9: field 'target.colour': unknown field"),
-    (GOOD.replace("duration_s: 0.1", "duration_s: -1"), ":2: field 'duration_s': Input should be greater than or equal to 0.001"),
-    (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
-    (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
-    (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
-    (GOOD + "events: {cp: .inf}\n", ":9: field 'events.cp': Input should be a finite number"),
-    (GOOD + "render: {surface: phong}\n", "field 'render.surface'"),
-    (GOOD + "render: {bake_background: sometimes}\n", "field 'render.bake_background'"),
-    (GOOD + "render: {bake_texels_per_px: 0}\n", "field 'render.bake_texels_per_px'"),
-    (GOOD + "render: {bake_max_size: 32}\n", "field 'render.bake_max_size'"),
-    (GOOD.replace("shape: cube", "shape: dodecahedron"), "field 'target.shape'"),
-    (GOOD.replace("shape: cube", "mesh: missing.obj"), "file not found"),
-    (GOOD + "sampling: {min_rate_hz: 500, max_rate_hz: 100}\n", "max_rate_hz must be >= min_rate_hz"),
-    (GOOD + "sampling: {max_rate_hz: 2.0e6}\n", "field 'sampling.max_rate_hz': Input should be less than or equal to"),
-    (GOOD.replace("[{t: 0, location: [0, 0, 0]}]", "[{t: 0.5, location: [0, 0, 0]}, {t: 0.1}]"),
-     "keyframe times must increase"),
-    ("name: t\n  bad: [\n", "YAML syntax error"),
-    (GOOD + "seed: 1\nseed: 2\n", ":10: field 'seed' is given twice (first on line 9)"),
-    (GOOD + "seed: true\n", ":9: field 'seed': Input should be a valid integer"),
-    (GOOD + "seed: 99999999999999999999999\n", ":9: field 'seed': Input should be less than or equal to"),
-    (GOOD.replace("duration_s: 0.1", "duration_s: 1.0e-9"), ":2: field 'duration_s': Input should be greater than or equal to 0.001"),
-    (GOOD + "sensor: {width: 64.0}\n", "field 'sensor.width': Input should be a valid integer"),
-    (GOOD.replace("shape: cube", "shape: cube\n  size_m: '1.6'"), "field 'target.size_m': Input should be a valid number"),
-    (GOOD.replace("location: [0, 0, 0]}]\n", "location: [.nan, 0, 0]}]\n"),
-     "field 'target.trajectory.keyframes.0.location.0': Input should be a finite number"),
-    (GOOD + "world: {color: [-1, 0.5, 0.5]}\n", "field 'world.color.0': Input should be greater than or equal to 0"),
-    (GOOD + "lights: [{strength: .inf}]\n", "field 'lights.0.strength': Input should be a finite number"),
-    ("- just\n- a list\n", "must be a mapping"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (GOOD + "  colour: red\n", ":9: field 'target.colour': unknown field"),
+        (
+            GOOD.replace("duration_s: 0.1", "duration_s: -1"),
+            ":2: field 'duration_s': Input should be greater than or equal to 0.001",
+        ),
+        (GOOD.replace("duration_s: 0.1", "duration_s: soon"), "field 'duration_s'"),
+        (GOOD + "events: {cp: -0.2}\n", "field 'events.cp'"),
+        (GOOD + "events: {colour: 1}\n", "field 'events.colour': unknown field"),
+        (GOOD + "events: {cp: .inf}\n", ":9: field 'events.cp': Input should be a finite number"),
+        (GOOD + "render: {surface: phong}\n", "field 'render.surface'"),
+        (GOOD + "render: {bake_background: sometimes}\n", "field 'render.bake_background'"),
+        (GOOD + "render: {bake_texels_per_px: 0}\n", "field 'render.bake_texels_per_px'"),
+        (GOOD + "render: {bake_max_size: 32}\n", "field 'render.bake_max_size'"),
+        (GOOD.replace("shape: cube", "shape: dodecahedron"), "field 'target.shape'"),
+        (GOOD.replace("shape: cube", "mesh: missing.obj"), "file not found"),
+        (GOOD + "sampling: {min_rate_hz: 500, max_rate_hz: 100}\n", "max_rate_hz must be >= min_rate_hz"),
+        (
+            GOOD + "sampling: {max_rate_hz: 2.0e6}\n",
+            "field 'sampling.max_rate_hz': Input should be less than or equal to",
+        ),
+        (
+            GOOD.replace("[{t: 0, location: [0, 0, 0]}]", "[{t: 0.5, location: [0, 0, 0]}, {t: 0.1}]"),
+            "keyframe times must increase",
+        ),
+        ("name: t\n  bad: [\n", "YAML syntax error"),
+        (GOOD + "seed: 1\nseed: 2\n", ":10: field 'seed' is given twice (first on line 9)"),
+        (GOOD + "seed: true\n", ":9: field 'seed': Input should be a valid integer"),
+        (GOOD + "seed: 99999999999999999999999\n", ":9: field 'seed': Input should be less than or equal to"),
+        (
+            GOOD.replace("duration_s: 0.1", "duration_s: 1.0e-9"),
+            ":2: field 'duration_s': Input should be greater than or equal to 0.001",
+        ),
+        (GOOD + "sensor: {width: 64.0}\n", "field 'sensor.width': Input should be a valid integer"),
+        (
+            GOOD.replace("shape: cube", "shape: cube\n  size_m: '1.6'"),
+            "field 'target.size_m': Input should be a valid number",
+        ),
+        (
+            GOOD.replace("location: [0, 0, 0]}]\n", "location: [.nan, 0, 0]}]\n"),
+            "field 'target.trajectory.keyframes.0.location.0': Input should be a finite number",
+        ),
+        (
+            GOOD + "world: {color: [-1, 0.5, 0.5]}\n",
+            "field 'world.color.0': Input should be greater than or equal to 0",
+        ),
+        (GOOD + "lights: [{strength: .inf}]\n", "field 'lights.0.strength': Input should be a finite number"),
+        ("- just\n- a list\n", "must be a mapping"),
+    ],
+)
 def test_bad_scene_files(tmp_path, text, words):
     p = write(tmp_path, text)
     with pytest.raises(UserError) as info:
@@ -97,7 +119,9 @@ def test_an_override_is_blamed_on_the_command_line_not_the_file(tmp_path):
     with pytest.raises(UserError, match=r"s.yaml:9: field 'sensor' must be a mapping \(to set sensor.width from the"):
         load_scene(p, {"sensor.width": 64})
     p = write(tmp_path, GOOD)
-    with pytest.raises(UserError, match=r"s.yaml: field 'sensor.width' = 4 \(an override\): .*greater than or equal to 8"):
+    with pytest.raises(
+        UserError, match=r"s.yaml: field 'sensor.width' = 4 \(an override\): .*greater than or equal to 8"
+    ):
         load_scene(p, {"sensor.width": 4})
     with pytest.raises(UserError, match=r"field 'duration_s' = nan \(an override\): Input should be a finite number"):
         load_scene(p, {"duration_s": float("nan")})
@@ -126,5 +150,7 @@ def test_an_unreadable_image_texture_names_the_scene_file_and_field(tmp_path):
     text = GOOD + "background:\n  material: {texture: {type: image, path: %s}}\n"
     assert load_scene(write(tmp_path, text % "good.png")).background.material.texture.path == tmp_path / "good.png"
     p = write(tmp_path, text % "bad.png")
-    with pytest.raises(UserError, match=r"s.yaml:10: field 'background.material.texture.path': .*bad.png: cannot read image"):
+    with pytest.raises(
+        UserError, match=r"s.yaml:10: field 'background.material.texture.path': .*bad.png: cannot read image"
+    ):
         load_scene(p)

@@ -4,9 +4,9 @@ about before anything is rendered (no Blender here: an output in a missing direc
 from __future__ import annotations
 
 import pytest
+from synthetic import MINIMAL_SCENE
 
 from dvsot.cli import main
-from synthetic import MINIMAL_SCENE
 
 CAMERA = "keyframes: [{t: 0, location: [0, -10, 0], look_at: [0, 0, 0]}]"
 TARGET = "keyframes: [{t: 0, location: [0, 0, 0]}]"

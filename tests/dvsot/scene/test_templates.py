@@ -7,8 +7,8 @@ import pytest
 
 from dvsot.cli import main
 from dvsot.scene import SceneConfig, read_yaml
-from dvsot.scene.templates import draw_variants, read_template, validate_variant, variant_seed
 from dvsot.scene.random_walk import RandomWalk, random_walk
+from dvsot.scene.templates import draw_variants, read_template, validate_variant, variant_seed
 
 ROOT = Path(__file__).resolve().parents[3]
 

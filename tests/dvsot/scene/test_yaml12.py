@@ -1,10 +1,10 @@
 """YAML 1.2 (ruamel.yaml) in scene files and --option values: none of YAML 1.1's traps; duplicate keys by line."""
 
 import pytest
-
-from dvsot.scene import load_scene, yaml_value
-from dvsot.core.errors import UserError
 from synthetic import MINIMAL_SCENE
+
+from dvsot.core.errors import UserError
+from dvsot.scene import load_scene, yaml_value
 
 
 def write(tmp_path, text):

@@ -12,8 +12,15 @@ from sctn.encoding import encode_boxes
 from sctn.energy import LAYER_NAMES, layer_ops
 from sctn.network import SCTN, NetworkConfig
 from sctn.samples import propose
-from sctn.sparse.evaluate import (_conv_block, candidate_record, candidate_voltages, dense_candidate_voltages,
-                              exact_blocker, per_candidate_voltages, summation_blocks)
+from sctn.sparse.evaluate import (
+    _conv_block,
+    candidate_record,
+    candidate_voltages,
+    dense_candidate_voltages,
+    exact_blocker,
+    per_candidate_voltages,
+    summation_blocks,
+)
 from sctn.sparse.kernels import window_currents
 
 torch.set_num_threads(1)
@@ -256,8 +263,8 @@ def test_tracker_tracks_the_same_boxes_as_with_the_dense_path(tmp_path, monkeypa
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from synthetic import moving_square_file
 
-    from dvsot.dataset import Dataset
     import sctn.sparse.evaluate as sparse_eval
+    from dvsot.dataset import Dataset
     from sctn.tracker import SCTNTracker
 
     net = _net(10, tail_steps=0)

@@ -88,8 +88,8 @@ def test_the_shipped_sctn_checkpoint_says_how_its_recipe_differs() -> None:
 
 
 def test_an_older_recipe_is_named_setting_by_setting(tmp_path: Path) -> None:
-    from sctn.checkpoint import load_checkpoint, save_checkpoint
     from sctn.ann import SCTNTwin, TwinConfig, load_twin
+    from sctn.checkpoint import load_checkpoint, save_checkpoint
     from sctn.network import SCTN
     from sctn.training.snn import TrainConfig
 

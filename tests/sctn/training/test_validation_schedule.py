@@ -11,8 +11,13 @@ def run_schedule(val_every: int, arscore_every: int, steps: int) -> list[tuple[i
     """(step, has a tracking score) of every validation entry, as fit makes them (the last step validated twice)."""
     history = {"train_loss": [], "val": []}
     calls = []
-    v = Validation(SimpleNamespace(eval=lambda: None), SimpleNamespace(val_arscore_every=arscore_every), history, lambda: {},
-                   lambda model: calls.append(len(history["train_loss"])) or {"arscore": 0.5})
+    v = Validation(
+        SimpleNamespace(eval=lambda: None),
+        SimpleNamespace(val_arscore_every=arscore_every),
+        history,
+        lambda: {},
+        lambda model: calls.append(len(history["train_loss"])) or {"arscore": 0.5},
+    )
     for step in range(1, steps + 1):
         history["train_loss"].append(0.0)
         if step % val_every == 0:
