@@ -158,7 +158,8 @@ def _no_repeats(flag: str, values: list | None) -> None:
 
 def variants(presets: list[str], noise_hz: list[float | None] | None,
              seeds: list[int] | None) -> list[tuple[str, str, float | None, int | None, str]]:
-    """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep order."""
+    """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep
+    order."""
     from dvsot.core.errors import UserError
 
     for flag, values in (("--preset", presets), ("--noise-hz", noise_hz), ("--event-seed", seeds)):

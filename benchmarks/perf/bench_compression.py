@@ -4,8 +4,8 @@
 
 Each file (default: data/dvsot21/*.h5) is rewritten into a temporary directory once per compression
 with dvsot's own writer (same events, boxes and chunking), then read back best of `--repeat` times in
-two ways (and the rewrite timed, which includes reading the source): every event column whole (a full scan, what `dvsot info` does) and every 10 ms segment in
-order (what bench and train do). Sizes are whole files in MB (10^6 bytes).
+two ways (and the rewrite timed, which includes reading the source): every event column whole (a full scan, what
+`dvsot info` does) and every 10 ms segment in order (what bench and train do). Sizes are whole files in MB (10^6 bytes).
 """
 
 from __future__ import annotations
