@@ -8,8 +8,8 @@ Wherever the scene schema takes a number, a vector or a choice, a template may g
 In a list (objects, lights, keyframes) an item {count: N, each: ITEM} stands for N items drawn one by one
 (N a whole number or a distribution of whole numbers). A trajectory may be {random_walk: {...}} instead of
 keyframes (dvsot.scene.random_walk). Variant i of a template whose master seed is S gets the scene seed
-variant_seed(S, i); each draw's generator derives from that seed and the drawn field's path, so variant 17 is the same on any
-machine and a distribution added elsewhere changes no other draw. Drawing the distributions is
+variant_seed(S, i); each draw's generator derives from that seed and the drawn field's path, so variant 17 is
+the same on any machine and a distribution added elsewhere changes no other draw. Drawing the distributions is
 dvsot.scene.distributions' job; this module reads and checks templates and makes their variants.
 """
 
