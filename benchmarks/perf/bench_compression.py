@@ -81,8 +81,8 @@ def main() -> None:
                 size = dst.stat().st_size
                 totals[c] += size
                 full, seg = (
-                    best_of(args.repeat, lambda: full_scan(dst)),
-                    best_of(args.repeat, lambda: segment_scan(dst)),
+                    best_of(args.repeat, lambda dst=dst: full_scan(dst)),
+                    best_of(args.repeat, lambda dst=dst: segment_scan(dst)),
                 )
                 print(
                     f"| {src.stem} | {n:,} | {c or 'none'} | {size / 1e6:.2f} | {wrote:.3f} | {full:.3f} | {seg:.3f} |",

@@ -474,7 +474,8 @@ class Dataset:
                 try:
                     mask, data = ds.id.read_direct_chunk((k * ds.chunks[0],))
                 except Exception as exc:  # a chunk the index does not find
-                    raise self._damaged(f"cannot read chunk {k} of /events/{name} ({exception_line(exc, 120)})")
+                    why = exception_line(exc, 120)
+                    raise self._damaged(f"cannot read chunk {k} of /events/{name} ({why})") from exc
                 if mask != 0 or chunk_digest(data) != want:
                     raise self._damaged(f"chunk {k} of /events/{name} is not the one written: its stored bytes differ")
 

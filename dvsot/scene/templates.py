@@ -190,7 +190,7 @@ def _unknown_kind(tpl: Template, v: Variant, locate: Locate) -> None:
             if isinstance(node, dict) and len(node) == 1 and isinstance(next(iter(node.values())), list):
                 line = locate(loc)
                 raise UserError(f"{tpl.source}{f':{line}' if line else ''}: field '{dotted(loc)}': unknown "
-                                f"distribution '{next(iter(node))}' (uniform, normal or choice)")
+                                f"distribution '{next(iter(node))}' (uniform, normal or choice)") from None
 
 
 def _copy(data: Any) -> Any:
