@@ -5,9 +5,9 @@ file, `generate_scenes` scene files into one each (`dvsot generate`), `generate_
 from a template and renders them (`read_template` -> `draw_variants` draws them only; `generate_many` renders tasks
 from `variant_tasks`, `scene_tasks` or `many_tasks`); `simulate_file` turns frames you have (images, video, .npy)
 into one, `EventSimulator` + `write_sequence` / `simulate_frames` any frames you make; `Dataset` reads it,
-`dataset_info` sums it up, `SegmentDataset` feeds PyTorch; `export_dataset` writes other tools' event files and `import_recording`
-reads them (with a recording's boxes). Each name is imported on first use, so `import dvsot` stays light (no
-torch, no bpy).
+`dataset_info` sums it up, `SegmentDataset` feeds PyTorch; `export_dataset` writes other tools' event files and
+`import_recording` reads them (with a recording's boxes). Each name is imported on first use, so `import dvsot` stays
+light (no torch, no bpy).
 """
 
 from dvsot.core.lazy import lazy_attributes

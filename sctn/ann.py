@@ -2,8 +2,8 @@
 
 Layers: SCTN's own (sctn/network.py NetworkConfig: the same widths, kernels and strides, and SCTN's
 bias setting: none in the paper preset), each a convolution or fully connected layer followed by ReLU
-instead of C-LIF neurons; the two output units (0 = background, 1 = target) have no activation. Input: a candidate's canvas from sctn/encoding.py
-(the events inside the box, 107 x 107), in one of two forms (`TwinConfig.input`):
+instead of C-LIF neurons; the two output units (0 = background, 1 = target) have no activation. Input: a candidate's
+canvas from sctn/encoding.py (the events inside the box, 107 x 107), in one of two forms (`TwinConfig.input`):
 
 - "bins" (default): the ten 1-ms steps x 2 polarities as 20 input channels (channel = 2 step + polarity).
   The twin then sees exactly what SCTN sees, timing included, so the comparison is between the neuron
@@ -164,9 +164,9 @@ def twin_macs(model: SCTNTwin) -> dict:
 
 
 def train_twin(files: list[Path], cfg, progress: bool = True, **validation) -> tuple[SCTNTwin, dict]:
-    """Train a new twin exactly as sctn.training.snn.train trains SCTN (same segments, samples, loss, optimiser, budget);
-    cfg is a sctn.training.snn.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input "bins");
-    `validation` (val_files, val_score) as sctn.training.snn.train takes them."""
+    """Train a new twin exactly as sctn.training.snn.train trains SCTN (same segments, samples, loss, optimiser,
+    budget); cfg is a sctn.training.snn.TrainConfig whose network is a TwinConfig (a NetworkConfig is taken as input
+    "bins"); `validation` (val_files, val_score) as sctn.training.snn.train takes them."""
     from sctn.training.snn import train
 
     if cfg.ops_penalty > 0:

@@ -85,11 +85,11 @@ def encode_search(events: EventBatch, t0_us: int, boxes_xywh: np.ndarray, ref_bo
     """Fast-mode input: one region for all candidates, at the reference box's canvas scale.
 
     The network config gives the canvas size, the steps and conv3's receptive field (total stride,
-    receptive-field size: NetworkConfig.receptive_field). Returns the region's input spikes (1, steps + tail_steps, 2, H, W), each candidate canvas's
-    top-left corner in region pixels (N, 2) and each candidate box in region pixels (N, 4). The
-    region covers what the cells kept by some candidate see (a cell is kept when its receptive
-    field's centre lies in the box): the candidate boxes plus half a receptive field, not the whole
-    canvases. Its corner lies on one lattice of the total stride (the sensor lattice at scale 1,
+    receptive-field size: NetworkConfig.receptive_field). Returns the region's input spikes
+    (1, steps + tail_steps, 2, H, W), each candidate canvas's top-left corner in region pixels (N, 2) and each
+    candidate box in region pixels (N, 4). The region covers what the cells kept by some candidate see (a cell is
+    kept when its receptive field's centre lies in the box): the candidate boxes plus half a receptive field, not
+    the whole canvases. Its corner lies on one lattice of the total stride (the sensor lattice at scale 1,
     moved by whole cells), so every candidate shares one convolution grid.
     """
     stride, rf = cfg.receptive_field()

@@ -213,7 +213,8 @@ def energy_table(model, files: list[Path], n_candidates: int = TRACK.n, n_segmen
     """Rows {method: {ac_ops, mac_ops, energy_pj, state_updates, state_energy_pj (per tracked segment),
     evaluations_per_segment, per_evaluation: {...}, x_sctn}}, plus firing statistics; x_sctn is a row's synaptic
     energy per segment over SCTN's per-candidate one. SCTN is fine-tuned per file as the tracker is (finetune).
-    `twin` (sctn.ann's SCTNTwin) and `siamfc` (benchmarks.trackers.siamfc's SiamFC) add their rows; `notes` print below."""
+    `twin` (sctn.ann's SCTNTwin) and `siamfc` (benchmarks.trackers.siamfc's SiamFC) add their rows; `notes` print
+    below."""
     groups = tuned_groups(model, files, n_segments, seed, finetune)
     sctn = sctn_energy(groups, n_candidates, seed, SCTN_MODES)
     firing = sctn["firing"]

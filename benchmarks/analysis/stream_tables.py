@@ -52,7 +52,7 @@ def format_stream(summary: dict) -> str:
                 f"| {v[p]:.3f} | {free['ARscore']:.3f} | {d.get('ARscore', float('nan')):+.3f} | {free['AUC']:.3f} | "
                 f"{d.get('AUC', float('nan')):+.3f} | {_ms(lat['mean_s'])} / {_ms(lat['p50_s'])} / "
                 f"{_ms(lat['p90_s'])} / {_ms(lat['max_s'])} | {v['queries']} |")
-        for seq, cell in per.get("failed", {}).items():
+        for seq in per.get("failed", {}):
             lines.append(f"| {markdown_cell(row)} | failed on {markdown_cell(seq)} | " + " | ".join([""] * 11) + " |")
     if summary.get("half_factor"):
         lines += ["", "| tracker | scale factor at half the latency-free ARscore |", "|---|---|"]

@@ -1,7 +1,7 @@
 """Results tables in the layout of the paper's Table 2 (A and R per sequence, ARscore beneath, an "all" column).
 
-One summary (`summarise`: a typed `Summary` of `Cell`s) feeds every format: terminal text, CSV (one row per tracker and sequence), JSON,
-Markdown and LaTeX, written side by side by `write_tables`.
+One summary (`summarise`: a typed `Summary` of `Cell`s) feeds every format: terminal text, CSV (one row per tracker and
+sequence), JSON, Markdown and LaTeX, written side by side by `write_tables`.
 """
 
 from __future__ import annotations

@@ -13,7 +13,8 @@ The names (what exports and tables call them):
 - absent: nothing of the target visible at the segment's end, or outside the sensor (`/segments/absent`);
 - out_of_view: at least `out_of_view_truncation` of the target's whole silhouette off the sensor (LaSOT's
   out_of_view; `/segments/truncation`);
-- cut_by_image: any of the target's silhouette off the sensor (truncation above `CUT_BY_IMAGE_TRUNCATION`, 0.01, dvsot.dataset.tags: GOT-10k's cut_by_image);
+- cut_by_image: any of the target's silhouette off the sensor (truncation above `CUT_BY_IMAGE_TRUNCATION`, 0.01,
+  dvsot.dataset.tags: GOT-10k's cut_by_image);
 - fast_motion: the ground-truth box centre moving more than `fast_sizes_per_segment` target sizes (the square root
   of the box's area) since the previous segment;
 - small_target: the ground-truth box's area, scaled to a 640x480 sensor, below `small_area_px`;

@@ -11,8 +11,9 @@ then the table prints mean and standard deviation over seeds.
     python -m benchmarks.experiments.ablation --rows paper loss_linear loss_basic --seeds 10 ...  # Fig. 7A
     python -m benchmarks.experiments.ablation --ci --rows paper loss_linear --seeds 2   # the two tiny CI scenes, quick
     python -m benchmarks.experiments.ablation ... --scheduler local:2 --retries 1      # each (row, seed) a Dask task
-    python -m benchmarks.experiments.ablation --train data/dvsot21 --val-data data/val --test data/val --test-split any \
-        --rows paper error_time_max calibration init_fluctuation --seeds 5 --out runs/choices   # chosen on validation
+    python -m benchmarks.experiments.ablation --train data/dvsot21 --val-data data/val --test data/val \
+        --test-split any --rows paper error_time_max calibration init_fluctuation --seeds 5 \
+        --out runs/choices   # chosen on validation
     python -m benchmarks.experiments.ablation --train data/dvsot21 --test data/dvsot21 \
         --rows paper widths_x2 widths_x4 --seeds 3 --jobs 1 --out runs/widths   # + widths_mdnet: hours; speed: idle
     python -m benchmarks.experiments.ablation ... --rows paper background_term no_background_neuron --seeds 5

@@ -158,7 +158,8 @@ def _no_repeats(flag: str, values: list | None) -> None:
 
 def variants(presets: list[str], noise_hz: list[float | None] | None,
              seeds: list[int] | None) -> list[tuple[str, str, float | None, int | None, str]]:
-    """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep order."""
+    """(variant name, preset, noise rate or None, seed or None, file name) for every variant and seed, in sweep
+    order."""
     from dvsot.core.errors import UserError
 
     for flag, values in (("--preset", presets), ("--noise-hz", noise_hz), ("--event-seed", seeds)):
@@ -171,7 +172,7 @@ def variants(presets: list[str], noise_hz: list[float | None] | None,
                 out.append((name, preset, rate, seed,
                             f"{name}.h5" if seed is None or len(seeds) == 1 else f"{name}_seed{seed}.h5"))
     files: dict[str, str] = {}
-    for name, _, _, _, file_name in out:  # names differ in case only: one file on a case-folding disk
+    for _, _, _, _, file_name in out:  # names differ in case only: one file on a case-folding disk
         other = files.setdefault(file_name.casefold(), file_name)
         if other != file_name or sum(v[-1] == file_name for v in out) > 1:
             raise UserError(f"variants {other!r} and {file_name!r} would write one file; give each variant once")

@@ -4,8 +4,8 @@
 
 Each file (default: data/dvsot21/*.h5) is rewritten into a temporary directory once per compression
 with dvsot's own writer (same events, boxes and chunking), then read back best of `--repeat` times in
-two ways (and the rewrite timed, which includes reading the source): every event column whole (a full scan, what `dvsot info` does) and every 10 ms segment in
-order (what bench and train do). Sizes are whole files in MB (10^6 bytes).
+two ways (and the rewrite timed, which includes reading the source): every event column whole (a full scan, what
+`dvsot info` does) and every 10 ms segment in order (what bench and train do). Sizes are whole files in MB (10^6 bytes).
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def main() -> None:
                 size = dst.stat().st_size
                 totals[c] += size
                 full, seg = (
-                    best_of(args.repeat, lambda: full_scan(dst)),
-                    best_of(args.repeat, lambda: segment_scan(dst)),
+                    best_of(args.repeat, lambda dst=dst: full_scan(dst)),
+                    best_of(args.repeat, lambda dst=dst: segment_scan(dst)),
                 )
                 print(
                     f"| {src.stem} | {n:,} | {c or 'none'} | {size / 1e6:.2f} | {wrote:.3f} | {full:.3f} | {seg:.3f} |",

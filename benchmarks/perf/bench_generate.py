@@ -84,7 +84,8 @@ def main() -> None:
         extra = ", ".join(f"{k}={v}" for k, v in summary["settings"].items()) or "default"
         print(
             f"| {summary['name']} | {summary['resolution']} | {extra} | {summary['frames']} | "
-            f"{summary['s_per_frame']} | {summary['s_per_frame_after_first']} | {summary['frames_per_simulated_s']} | {summary['wall_s']} |"
+            f"{summary['s_per_frame']} | {summary['s_per_frame_after_first']} | "
+            f"{summary['frames_per_simulated_s']} | {summary['wall_s']} |"
         )
 
 

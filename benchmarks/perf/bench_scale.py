@@ -9,8 +9,8 @@ LocalCluster of single-threaded worker processes is started (start_s) and warmed
 import, Cycles' first render, the event kernels; `dvsot generate --scheduler` pays this once per worker before
 its first submit, as does a real cluster). Neither counts in the throughput. Then --repeats rounds: in each round every
 (worker count, thread mode) gets the same variants, submitted through the cluster's tcp:// address by
-dvsot.pipeline.many_scenes.generate_variants (the code path of `dvsot generate --scheduler tcp://...`) into a new directory;
-rounds interleave the configurations, so a change of the machine's load hits all of them alike.
+dvsot.pipeline.many_scenes.generate_variants (the code path of `dvsot generate --scheduler tcp://...`) into a new
+directory; rounds interleave the configurations, so a change of the machine's load hits all of them alike.
 - run_s: first submit to last result; median and min over rounds; sequences/h = variants / median run_s.
 - thread modes: `shared` (the default of --scheduler: render.threads = the machine's cores / its workers, so
   1 worker renders with every core) and `one` (render.threads = 1: each worker uses one core, as one more

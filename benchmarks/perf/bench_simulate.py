@@ -9,9 +9,9 @@ simulation, the written and read-back file), once per --tree (a checkout put fir
 the dvsot this Python imports), and esim_py (ESIM's C++ port from rpg_vid2e, contrast 0.2/0.2, eps 1e-3,
 no refractory period: dvsot's defaults) in the Python --esim-python names (an error, exit 2, if it does not
 import esim_py; without the option: this one, if it does). esim_py is timed as a process (start-up,
-import, generateFromFolder, no file written) and as its generateFromFolder call alone. Printed per variant: the median frames/s over the rounds, their
-range, and CPU milliseconds a frame (the child's user + system time); and each dvsot variant's ratio to
-esim_py's frames/s, against the process and against the call.
+import, generateFromFolder, no file written) and as its generateFromFolder call alone. Printed per variant: the median
+frames/s over the rounds, their range, and CPU milliseconds a frame (the child's user + system time); and each dvsot
+variant's ratio to esim_py's frames/s, against the process and against the call.
 
 --preset (repeatable) runs every tree once per sensor preset (`dvsot simulate --preset NAME`; variant
 `dvsot[NAME]`); without it, the default (ideal) model only. --v2e-python and --v2e-src time v2e's

@@ -2,8 +2,8 @@
 
 A new model registers itself here (or from its own module, with `register_trainer`); `dvsot train --model` and
 `benchmarks.train_model` read nothing else. SCTN-like models (a `network` type) share the layer settings
-(channels, fc, tail_steps, bias, no_background_neuron), checked here. Functions and types are named as "module:attribute" and imported
-when a run uses them, so reading the registry (the command's --help) imports no torch.
+(channels, fc, tail_steps, bias, no_background_neuron), checked here. Functions and types are named as
+"module:attribute" and imported when a run uses them, so reading the registry (the command's --help) imports no torch.
 """
 
 from __future__ import annotations

@@ -15,8 +15,8 @@ benchmarks/evaluation/stream.py, docs/benchmarks.md).
 
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
---checkpoint goes to the one tracker of the run that takes a checkpoint (sctn, sctn_ann, siamfc, goturn,
-siamrpn, siammask; the last three ship none): an error without one or with several (give each its own with
+--checkpoint goes to the one tracker of the run that takes a checkpoint (benchmarks.bench.plan.CHECKPOINT_TRACKERS;
+only sctn, sctn_ann and siamfc ship one): an error without one or with several (give each its own with
 --option NAME.checkpoint=PATH); a checkpoint of another model is refused naming the model it holds. The
 energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the
 shipped one), the ANN rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
@@ -41,7 +41,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from benchmarks.bench.plan import DEFAULT_DATA
+from benchmarks.bench.plan import CHECKPOINT_TRACKERS, DEFAULT_DATA
+from benchmarks.trackers import BUILTIN
 
 # run_benchmark's parameters as the flags that set them, for its messages (dvsot.core.errors.label)
 FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": "--jobs", "scheduler": "--scheduler",
@@ -53,8 +54,7 @@ FLAGS = {"trackers": "--tracker", "data": "--data", "out_dir": "--out", "jobs": 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot bench`."""
     p.add_argument("--tracker", action="append", required=True, metavar="NAME",
-                   help="tracker to run (repeatable): sctn, sctn_ann, siamfc, goturn, siamrpn, siammask, rct, "
-                        "csrt, kcf, mil or one you registered")
+                   help=f"tracker to run (repeatable): {', '.join(BUILTIN)} or one you registered")
     p.add_argument("--data", nargs="+", default=None,
                    help=f"dataset files, directories or globs (default: {DEFAULT_DATA})")
     p.add_argument("--split", default="test", help="split attribute to keep: train, test, or 'any' (default test)")
@@ -70,11 +70,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", action="store_true", help="also write iou_over_time.png")
     p.add_argument("--video", action="append", default=[], metavar="SEQUENCE",
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
-    p.add_argument("--checkpoint", help="checkpoint for the run's --tracker sctn, sctn_ann, siamfc, goturn, siamrpn or "
-                                        "siammask (default: the shipped one; none ships for the last three); an "
-                                        "error without one of them, or with several")
-    p.add_argument("--no-energy", action="store_true", help="skip the energy table (made when sctn, sctn_ann or "
-                                                           "siamfc runs)")
+    takers = f"{', '.join(CHECKPOINT_TRACKERS[:-1])} or {CHECKPOINT_TRACKERS[-1]}"
+    p.add_argument("--checkpoint", help=f"checkpoint for the run's --tracker {takers} (default: the shipped one; "
+                                        "only sctn, sctn_ann and siamfc ship one); an error without one of them, "
+                                        "or with several")
+    p.add_argument("--no-energy", action="store_true", help=f"skip the energy table (made when {takers} runs)")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
                    help="constructor option of one tracker, e.g. sctn.fast=false or rct.cluster_size=0.05 "
                         "(checked before the run)")

@@ -4,14 +4,18 @@ Examples:
   dvsot generate blender_scenes/quickstart.yaml -o out/quickstart.h5 --preview
   dvsot generate blender_scenes/*.yaml --out-dir data/dvsot21 --jobs 2
   dvsot generate blender_scenes/city_cat.yaml -o /tmp/cc.h5 --duration 0.3 --resolution 320x240
-  dvsot generate blender_scenes/random_dvsot21.yaml --variants 5 --dry-run
-  dvsot generate blender_scenes/random_dvsot21.yaml --variants 500 --out-dir data/random --scheduler local:2
-  dvsot generate blender_scenes/random_dvsot21.yaml --variants 500 --out-dir /shared/random --scheduler tcp://head:8786
+  dvsot generate blender_scenes/templates/dvsot21_random.yaml --variants 5 --dry-run
+  dvsot generate blender_scenes/templates/dvsot21_random.yaml --variants 500 --out-dir data/random --scheduler local:2
+  dvsot generate blender_scenes/templates/dvsot21_random.yaml --variants 500 --out-dir /shared/random \\
+      --scheduler tcp://head:8786
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+
+from dvsot.core.errors import UserError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,8 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=1, help="scenes rendered in parallel processes: local:N (default 1)")
     p.add_argument("--keep-frames", help="directory to keep rendered luma frames (.npy) in")
     p.add_argument("--masks", action=argparse.BooleanOptionalAction, default=None,
-                   help="keep the object index masks per sample (/masks/objects); on by default, --no-masks "
-                        "leaves them out")
+                   help="keep the object index masks per sample (/masks/objects; default), or not (--no-masks)")
     p.add_argument("--quiet", action="store_true", help="no progress bar; JSON summary")
     many = p.add_argument_group("many scenes (several scene files, a template's variants, a cluster; writes "
                                 "<out-dir>/manifest.json)")
@@ -38,8 +41,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _overrides(args: argparse.Namespace) -> dict:
-    from dvsot.core.errors import UserError
-
     out = {}
     if args.duration is not None:
         if args.duration <= 0:
@@ -60,8 +61,6 @@ _LABELS = {"output": "-o", "out_dir": "--out-dir", "preview": "--preview", "keep
 
 
 def _warn(text: str) -> None:
-    import sys
-
     print(f"dvsot generate: warning: {text}", file=sys.stderr)
 
 
@@ -69,10 +68,8 @@ def run(args: argparse.Namespace) -> int:
     """Validate every scene first (nothing is rendered if one is bad), then render them; 1 if a scene failed."""
     import glob
     import json
-    import sys
 
     from dvsot.core import bounds
-    from dvsot.core.errors import UserError
     from dvsot.pipeline.manifest import summary_line
     from dvsot.pipeline.many_scenes import generate_scenes, many_tasks
 

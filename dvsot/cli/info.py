@@ -17,7 +17,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def summarise(path: str) -> dict:
-    """The summary of one dataset file: dvsot.dataset.info.dataset_info (imported here on use: `dvsot --help` stays light)."""
+    """The summary of one dataset file: dvsot.dataset.info.dataset_info (imported here on use: `dvsot --help` stays
+    light)."""
     from dvsot.dataset.info import dataset_info
 
     return dataset_info(path)
@@ -56,7 +57,8 @@ def _text(info: dict) -> str:
     if "box_width_px" in info:
         w, h = info["box_width_px"], info["box_height_px"]
         lines.append(
-            f"  box size       w {w[0]:.0f}/{w[1]:.0f}/{w[2]:.0f}  h {h[0]:.0f}/{h[1]:.0f}/{h[2]:.0f} px (min/median/max)"
+            f"  box size       w {w[0]:.0f}/{w[1]:.0f}/{w[2]:.0f}  "
+            f"h {h[0]:.0f}/{h[1]:.0f}/{h[2]:.0f} px (min/median/max)"
         )
     if "simulator" in info and isinstance(info["simulator"], dict):
         lines.append("  simulator      " + ", ".join(f"{k}={v}" for k, v in info["simulator"].items()))

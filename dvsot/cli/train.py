@@ -1,4 +1,4 @@
-"""Train SCTN (or its ANN twin, or SiamFC) on the training split of dataset files and write a checkpoint.
+"""Train SCTN, its ANN twin or an ANN tracker on ATSLTD frames on dataset files' training split; write a checkpoint.
 
 With no flags it trains the recipe the shipped checkpoints are trained with (sctn.training.snn.TrainConfig's
 defaults). The command parses its flags and calls the library: benchmarks.train_model (the training registry's model,
@@ -21,9 +21,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of `dvsot train`."""
     from benchmarks.training.registry import TRAINERS
 
+    frame_models = ", ".join(m for m in TRAINERS if m not in ("sctn", "sctn_ann"))
     p.add_argument("--model", choices=list(TRAINERS), default="sctn",
-                   help="sctn (default), sctn_ann (SCTN's layers with ReLU), or on ATSLTD frames siamfc, "
-                        "goturn, siamrpn, siammask")
+                   help=f"a model of the training registry: sctn (default), sctn_ann (SCTN's layers with ReLU), "
+                        f"or on ATSLTD frames {frame_models}")
     p.add_argument("--data", nargs="+", default=["data/dvsot21"], help="dataset files, directories or globs")
     p.add_argument("--split", default="train", help="split attribute to train on, or 'any' (default train)")
     p.add_argument("-o", "--output", default=None, help="checkpoint to write (default runs/<model>.pt)")

@@ -1,4 +1,5 @@
-"""Defaults shared by the library and the command line, in a module that imports nothing (`dvsot --help` stays light)."""
+"""Defaults shared by the library and the command line, in a module that imports nothing (`dvsot --help` stays
+light)."""
 
 SEGMENT_US = 10_000  # segment length (microseconds): the paper's 10 ms segments
 # .raw written by dvsot export: EVT 2, which faery and expelliarmus (tonic's reader) decode exactly;

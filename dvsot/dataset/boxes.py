@@ -24,7 +24,8 @@ def iou_xywh(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def interpolate_boxes(t_samples: np.ndarray, xywh: np.ndarray, t_query: np.ndarray) -> np.ndarray:
-    """Boxes (pixels) at query times (us), linear per coordinate between samples; NaN if a neighbour is NaN or outside the track."""
+    """Boxes (pixels) at query times (us), linear per coordinate between samples; NaN if a neighbour is NaN or outside
+    the track."""
     ts = np.asarray(t_samples, dtype=np.float64)
     boxes = np.asarray(xywh, dtype=np.float64).reshape(-1, 4)
     tq = np.atleast_1d(np.asarray(t_query, dtype=np.float64))

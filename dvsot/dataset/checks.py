@@ -79,7 +79,8 @@ def check_stored(f: h5py.File) -> None:
 
 
 def check_root_links(f: h5py.File, version: int) -> int:
-    """Raise Damaged unless root /ms_to_idx is /events/ms_to_idx and /t_offset a scalar integer; return the offset (us)."""
+    """Raise Damaged unless root /ms_to_idx is /events/ms_to_idx and /t_offset a scalar integer; return the offset
+    (us)."""
     if version >= 2:
         for name in ("ms_to_idx", "t_offset"):
             if name not in f:

@@ -24,7 +24,8 @@ def _canonical(value: Any) -> Any:
 
 
 def attrs_digest(attrs: dict[str, Any]) -> str:
-    """SHA-256 (hex) of the canonical JSON (sorted keys, no spaces) of decoded root attributes, the digest itself left out."""
+    """SHA-256 (hex) of the canonical JSON (sorted keys, no spaces) of decoded root attributes, the digest itself left
+    out."""
     body = {k: v for k, v in attrs.items() if k != DIGEST_ATTR}
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=_canonical)
     return hashlib.sha256(text.encode("ascii")).hexdigest()

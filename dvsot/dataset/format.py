@@ -42,7 +42,8 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
 
 Event columns are byte-shuffled and gzip (level 1) compressed, filters every HDF5 library has, so
 h5dump and readers outside h5py open them
-(the writer encodes those chunks itself, with ISA-L's deflate: dvsot.dataset.h5chunks). Version 1 files (LZF, no root link, no /t_offset) still load, with offset 0.
+(the writer encodes those chunks itself, with ISA-L's deflate: dvsot.dataset.h5chunks). Version 1 files (LZF, no root
+link, no /t_offset) still load, with offset 0.
 
 The writer appends events in chunks and computes `ms_to_idx` as it goes, so a sequence of hundreds
 of millions of events never sits in memory. It writes to a temporary name beside the target and

@@ -102,7 +102,7 @@ def write_preview(dataset, out_path: str | os.PathLike, boxes: dict[str, np.ndar
         for seg in ds.segments(start, stop):
             img = event_frame(seg.events, ds.width, ds.height, background)
             draw_box(img, seg.box, GT_COLOUR)
-            for (name, colour), track in zip(legend[1:], tracks.values()):
+            for (_, colour), track in zip(legend[1:], tracks.values()):
                 if seg.index < len(track):
                     draw_box(img, track[seg.index], colour)
             if tracks:  # a lone green box needs no legend; with predictions, say which is which

@@ -193,7 +193,8 @@ class Dataset:
                                f"0 <= first <= last < root attribute 'duration_us' ({self.duration_us})")
 
     def _object_table(self, f: h5py.File) -> None:
-        """The object table and per-id event counts, the label column read through once: ids outside the table refused."""
+        """The object table and per-id event counts, the label column read through once: ids outside the table
+        refused."""
         self._has_object = "object" in self._columns
         if self._has_object != ("objects" in f):
             raise Damaged("/events/object without /objects" if self._has_object else "/objects without /events/object")
@@ -473,7 +474,8 @@ class Dataset:
                 try:
                     mask, data = ds.id.read_direct_chunk((k * ds.chunks[0],))
                 except Exception as exc:  # a chunk the index does not find
-                    raise self._damaged(f"cannot read chunk {k} of /events/{name} ({exception_line(exc, 120)})")
+                    why = exception_line(exc, 120)
+                    raise self._damaged(f"cannot read chunk {k} of /events/{name} ({why})") from exc
                 if mask != 0 or chunk_digest(data) != want:
                     raise self._damaged(f"chunk {k} of /events/{name} is not the one written: its stored bytes differ")
 
@@ -510,7 +512,8 @@ class Dataset:
         return self._seg_ann is not None
 
     def segment_scored(self) -> np.ndarray:
-        """Per segment, whether its ground truth may be scored: every segment of a rendered file, matched ones of a recording."""
+        """Per segment, whether its ground truth may be scored: every segment of a rendered file, matched ones of a
+        recording."""
         if self._seg_ann is None:
             return np.ones(self.num_segments, bool)
         return self._seg_ann >= 0
@@ -520,7 +523,8 @@ class Dataset:
         return None if self._seg_ann is None else self._seg_ann.copy()
 
     def segment_visibility(self) -> np.ndarray | None:
-        """Per segment, visible / amodal target pixels at its end (0..1, NaN outside the track), or None (not in the file)."""
+        """Per segment, visible / amodal target pixels at its end (0..1, NaN outside the track), or None (not in the
+        file)."""
         return None if self._seg_visibility is None else self._seg_visibility.copy()
 
     def segment_absent(self) -> np.ndarray | None:

@@ -17,8 +17,8 @@ STRUCTURED_DTYPE = np.dtype([("x", np.uint16), ("y", np.uint16), ("t", np.int64)
 
 @dataclass(frozen=True)
 class EventBatch:
-    """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or None),
-    noise_kind (u1 or None: NOISE_KINDS' codes),
+    """Events in time order: x, y (pixels, u2), t (microseconds, i8), p (1 brighter, 0 darker, u1), signal (bool or
+    None), noise_kind (u1 or None: NOISE_KINDS' codes),
     object (the id of the object that made each event, u1, dvsot.events.labels; None where not labelled)."""
 
     x: np.ndarray

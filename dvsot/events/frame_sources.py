@@ -154,7 +154,8 @@ class FrameSource:
                 raise UserError(f"{self.path}: frame {i}: {exc}") from None
 
     def _image(self, p: Path, log_eps: float | None = None, coded: bool = False) -> np.ndarray | CodedFrame:
-        """One image file as a linear-luma frame or as log intensities (on a decoding thread: OpenCV releases the GIL)."""
+        """One image file as a linear-luma frame or as log intensities (on a decoding thread: OpenCV releases the
+        GIL)."""
         size = image_size(p)  # the header first: a frame of another size is not decoded
         if size is not None and size != (self.width, self.height):
             raise UserError(f"{p}: image is {size[0]}x{size[1]}, the first was {self.width}x{self.height}")

@@ -148,7 +148,8 @@ def _candidate(i, v, before, direct, noisy, photo, out, last, lo_log, hi_log, ba
 
 
 def photoreceptor(L: np.ndarray, linlog_intensity: float, log_eps: float) -> np.ndarray:
-    """The photoreceptor's output for log intensities L = log(I + log_eps): L above the lin-log knee, its tangent below."""
+    """The photoreceptor's output for log intensities L = log(I + log_eps): L above the lin-log knee, its tangent
+    below."""
     if linlog_intensity <= 0:
         return L
     inten = np.maximum(np.exp(L) - log_eps, 0.0)
@@ -576,7 +577,8 @@ class SensorModel:
                                 f"{(t1 - t0) / 1000:g} ms apart, more than the bound of {MAX_NOISE_EVENTS:g}")
 
     def _code_tables(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(photoreceptor output, inten01, intensity) per code of a table of log intensities; kept for the last table."""
+        """(photoreceptor output, inten01, intensity) per code of a table of log intensities; kept for the last
+        table."""
         if self._tables[0] is not table:
             p = self.params
             inten = np.maximum(np.exp(table) - p.log_eps, 0.0)

@@ -18,9 +18,9 @@ Semantics (after ESIM, Rebecq et al. 2018), per pixel:
   with mismatch="per_interval" they are drawn anew for every interval, as ESIM does (where a smaller
   draw leaves levels between ref and L0, they are skipped; ESIM's loop emits nothing then: docs/events.md).
 * Refractory period R: a crossing closer than R to the pixel's last *emitted* event is dropped and the
-  reference still advances (ESIM's behaviour); the test is on exact times, before rounding to 1 us. Crossings inside one interval are equally spaced in
-  time (linear interpolation), so the kept ones are found in closed form: the first kept index
-  j0 = ceil((R - (t_first - t_last)) / dt), then every m = ceil(R / dt)-th crossing.
+  reference still advances (ESIM's behaviour); the test is on exact times, before rounding to 1 us. Crossings inside one
+  interval are equally spaced in time (linear interpolation), so the kept ones are found in closed form: the first kept
+  index j0 = ceil((R - (t_first - t_last)) / dt), then every m = ceil(R / dt)-th crossing.
 * Noise beyond ESIM (flagged ``signal=False``; they do not move the reference): shot noise, events
   of random polarity at ``shot_noise_hz`` per pixel, and leak events, ON events at ``leak_hz`` per
   pixel (the visible effect of v2e's leaky reference), both as homogeneous Poisson processes with
@@ -537,7 +537,8 @@ def _empty_crossings() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _merge_noise(signal: EventBatch, noise: tuple[np.ndarray, ...], width: int, t0: int) -> EventBatch:
-    """Time-ordered signal events and noise (pixel, float us, polarity) as one batch sorted by (time, pixel), signal first."""
+    """Time-ordered signal events and noise (pixel, float us, polarity) as one batch sorted by (time, pixel), signal
+    first."""
     pix_n, times, pol_n = noise
     pix = np.concatenate([signal.y.astype(np.int64) * width + signal.x, pix_n])
     t_rel = np.concatenate([signal.t - t0, np.rint(times - t0).astype(np.int64)])

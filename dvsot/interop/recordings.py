@@ -46,7 +46,8 @@ class BoxFile:
 
 
 def _numbers(path: Path, what: str, fields: tuple[int, ...]) -> tuple[np.ndarray, list[int]]:
-    """Rows of numbers of a text file (all with one of `fields` counts), and their line numbers; errors name the line."""
+    """Rows of numbers of a text file (all with one of `fields` counts), and their line numbers; errors name the
+    line."""
     from dvsot.interop.text_inputs import text_lines
 
     numbered = text_lines(path, what)

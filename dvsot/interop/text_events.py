@@ -104,7 +104,8 @@ def write_text(path: str | os.PathLike, t: np.ndarray, x: np.ndarray, y: np.ndar
 
 
 def _data_lines(path: Path, skip: int) -> list[int]:
-    """1-based numbers of the lines numpy's parser reads as data rows (after `skip` lines; blank and # lines skipped)."""
+    """1-based numbers of the lines numpy's parser reads as data rows (after `skip` lines; blank and # lines
+    skipped)."""
     numbers = []
     with open(path, "rb") as fh:
         for no, line in enumerate(fh, start=1):
@@ -133,8 +134,8 @@ MAX_TXT_SECONDS = 2.0 ** 31
 def _header(path: Path, kind: str, header: bool = False) -> tuple[int, tuple[int, int] | None]:
     """(lines before the data, sensor size from a TXT 'width height' line or None).
 
-    A CSV's first line is data unless `header` says it is not or it is dvsot's own 't,x,y,p' (or 't,x,y,p,object'): a line that
-    is neither is parsed as an event, and fails naming its line when it is not one.
+    A CSV's first line is data unless `header` says it is not or it is dvsot's own 't,x,y,p' (or 't,x,y,p,object'): a
+    line that is neither is parsed as an event, and fails naming its line when it is not one.
     """
     with open(path, "rb") as fh:
         first = fh.readline().split(b"#")[0].strip()

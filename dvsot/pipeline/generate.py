@@ -29,7 +29,8 @@ from dvsot.scene.trajectory import pose_and_scale, pose_matrix, project
 
 
 def scene_projector(cfg: SceneConfig):
-    """A function t (s) -> (N, 2) pixel positions of tracked points (objects' and the background's; NaN behind the camera)."""
+    """A function t (s) -> (N, 2) pixel positions of tracked points (objects' and the background's; NaN behind the
+    camera)."""
     k = cfg.sensor.intrinsics()
     n = cfg.sampling.points_per_object
     moving = []
@@ -91,7 +92,8 @@ _FRAME = re.compile(r"^\d{6}\.npy$")
 
 
 def check_keep_frames(path: str | Path, flag: str) -> Path:
-    """A directory for kept frames: new, empty, or holding only frames (NNNNNN.npy) of an earlier run, replaced whole."""
+    """A directory for kept frames: new, empty, or holding only frames (NNNNNN.npy) of an earlier run, replaced
+    whole."""
     p = Path(path)
     if p.is_dir():
         other = sorted(n for n in os.listdir(p) if not _FRAME.match(n))

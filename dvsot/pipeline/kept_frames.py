@@ -53,7 +53,8 @@ def load_frame(path: str | os.PathLike) -> np.ndarray:
 
 
 def frames_problem(files: list[Path], recorded: str | None) -> str | None:
-    """Why the frame files are not the frames whose digest is `recorded` (one line), or None (also with none recorded)."""
+    """Why the frame files are not the frames whose digest is `recorded` (one line), or None (also with none
+    recorded)."""
     if recorded is None:
         return None
     digest = FrameDigest()

@@ -134,8 +134,8 @@ def silhouette_coverage(verts_world: np.ndarray, tris: np.ndarray, cam_to_world:
     max_cells pixels the grid is the sensor's own pixels extended past its edges (exact at pixel resolution:
     on_sensor is the mask's count, up to ties of a pixel centre on an edge); where it does not, every cell is
     s x s pixels (s the smallest integer that fits, cells aligned with the sensor's corner), and both areas are
-    counted on that coarser grid, so their ratio's error is a band of about one cell along the outline. Nothing in front of the camera
-    gives (empty mask, 0, 0).
+    counted on that coarser grid, so their ratio's error is a band of about one cell along the outline. Nothing in front
+    of the camera gives (empty mask, 0, 0).
     """
     u, v = _projected(verts_world, tris, cam_to_world, k, near)
     W, H = k.width, k.height

@@ -211,7 +211,8 @@ def run_tasks(client, fn: Callable, calls: list[tuple], retries: int = 0,
     failure cancels every other task and is raised as one line (naming `where`, else the scheduler): the task's
     own UserError or RunError, else a RunError.
     lease_dir: the directory the tasks write into (the same path on every worker): the run's lease goes there
-    (on local:N, in this machine's temp directory), and once this call ends, by an exception (an interrupt included) or not, no task of it commits anything.
+    (on local:N, in this machine's temp directory), and once this call ends, by an exception (an interrupt included) or
+    not, no task of it commits anything.
     """
     from dvsot.runtime.staging import RunLease
 

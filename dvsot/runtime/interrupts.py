@@ -21,9 +21,9 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
-from contextlib import contextmanager, nullcontext
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from contextvars import ContextVar
-from typing import ContextManager, Protocol
+from typing import Protocol
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -225,7 +225,7 @@ class Guard(Protocol):
 
     def problem(self) -> str | None: ...
 
-    def committing(self) -> ContextManager[None]: ...
+    def committing(self) -> AbstractContextManager[None]: ...
 
 
 _guard: ContextVar[Guard | None] = ContextVar("dvsot_run_guard", default=None)
@@ -241,7 +241,7 @@ def guarded(guard: Guard | None) -> Iterator[None]:
         _guard.reset(token)
 
 
-def committing() -> ContextManager[None]:
+def committing() -> AbstractContextManager[None]:
     """Around a commit's renames: the guard of this task's run held (its parent cannot stop the run meanwhile)."""
     guard = _guard.get()
     return guard.committing() if guard is not None else nullcontext()

@@ -47,7 +47,8 @@ def look_at_problems(cfg) -> list[tuple[tuple, str]]:
         if all(k.look_at is None for k in keys):
             continue
 
-        def gap(t: float) -> float:  # metres between the location and the look_at point at time t (seconds)
+        # this iteration's track bound as defaults: gap is a closure over the loop's variables
+        def gap(t: float, keys=keys, smooth=smooth) -> float:  # metres from the location to look_at at t (s)
             return float(np.linalg.norm(_track_at(keys, "look_at", t, smooth) - _track_at(keys, "location", t, smooth)))
 
         times = _times([k.t for k in keys], cfg.duration_s)

@@ -18,7 +18,8 @@ from dvsot.scene.schema import Material, SceneConfig
 
 
 def _field_loc(loc: tuple) -> tuple:
-    """A pydantic error location without its validator and union-member tags ('function-after[..]', 'constrained-float')."""
+    """A pydantic error location without its validator and union-member tags ('function-after[..]',
+    'constrained-float')."""
     return tuple(p for p in loc if not (isinstance(p, str) and ("-" in p or "[" in p)))
 
 

@@ -1,4 +1,5 @@
-"""Scene templates: scene files whose values may be distributions, drawn into concrete scenes (blender_scenes/README.md).
+"""Scene templates: scene files whose values may be distributions, drawn into concrete scenes
+(blender_scenes/README.md).
 
 Wherever the scene schema takes a number, a vector or a choice, a template may give
   {uniform: [lo, hi]}                 a real number in [lo, hi] (lo, hi may be vectors of one length)
@@ -6,9 +7,9 @@ Wherever the scene schema takes a number, a vector or a choice, a template may g
   {choice: [a, b, ...]}               one of the values (each may hold distributions), optionally weights: [...]
 In a list (objects, lights, keyframes) an item {count: N, each: ITEM} stands for N items drawn one by one
 (N a whole number or a distribution of whole numbers). A trajectory may be {random_walk: {...}} instead of
-keyframes (dvsot.scene.random_walk). Variant i of a template whose master seed is S gets the scene seed variant_seed(S, i);
-each draw's generator derives from that seed and the drawn field's path, so variant 17 is the same on any
-machine and a distribution added elsewhere changes no other draw. Drawing the distributions is
+keyframes (dvsot.scene.random_walk). Variant i of a template whose master seed is S gets the scene seed
+variant_seed(S, i); each draw's generator derives from that seed and the drawn field's path, so variant 17 is
+the same on any machine and a distribution added elsewhere changes no other draw. Drawing the distributions is
 dvsot.scene.distributions' job; this module reads and checks templates and makes their variants.
 """
 
@@ -189,7 +190,7 @@ def _unknown_kind(tpl: Template, v: Variant, locate: Locate) -> None:
             if isinstance(node, dict) and len(node) == 1 and isinstance(next(iter(node.values())), list):
                 line = locate(loc)
                 raise UserError(f"{tpl.source}{f':{line}' if line else ''}: field '{dotted(loc)}': unknown "
-                                f"distribution '{next(iter(node))}' (uniform, normal or choice)")
+                                f"distribution '{next(iter(node))}' (uniform, normal or choice)") from None
 
 
 def _copy(data: Any) -> Any:

@@ -23,7 +23,10 @@ def euler_xyz_to_matrix(deg: np.ndarray) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def look_at_matrix(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 0.0, 1.0])) -> np.ndarray:
+_Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+def look_at_matrix(eye: np.ndarray, target: np.ndarray, up: np.ndarray = _Z_UP) -> np.ndarray:
     """Rotation whose local -Z points from eye to target and local +Y is as close to `up` as possible."""
     f = np.asarray(target, np.float64) - np.asarray(eye, np.float64)
     f = f / np.linalg.norm(f)

@@ -22,10 +22,9 @@ STAGES = ("base", "runtime", "events", "scene", "render", "dataset", "interop", 
 SCTN_LAYERS = (
     ("basics", ("neurons", "samples", "params", "nir_sim")),  # C-LIF neurons, sample boxes, the tracker's settings
     ("network", ("network", "spike_sums", "encoding", "loss")),  # the model, its inputs and its loss
-    (
-        "energy",
-        ("macs", "energy", "energy_run"),
-    ),  # operations counted from spikes and multiply-accumulates counted as run: the training's penalty and the energy table use it
+    # operations counted from spikes and multiply-accumulates counted as run: the training's penalty and the
+    # energy table use it
+    ("energy", ("macs", "energy", "energy_run")),
     ("sparse", ("sparse",)),  # per-candidate evaluation over the events that exist
     ("training", ("finetune", "training")),
     ("checkpoint", ("checkpoint",)),  # a stored model and the training settings it was made with

@@ -19,8 +19,8 @@ def locations(size: int, search_px: int, stride: int) -> torch.Tensor:
 def decode(dist: torch.Tensor, pos: torch.Tensor) -> torch.Tensor:
     """Boxes (B, 4, R, R) x0 y0 x1 y1 from distances (B, 4, R, R) l t r b at locations `pos` (R,) on both axes."""
     px, py = pos[None, None, :], pos[None, :, None]
-    l, t, r, b = dist.unbind(1)
-    return torch.stack([px - l, py - t, px + r, py + b], dim=1)
+    left, top, right, bottom = dist.unbind(1)
+    return torch.stack([px - left, py - top, px + right, py + bottom], dim=1)
 
 
 def assign(boxes: torch.Tensor, pos: torch.Tensor, stride: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -39,7 +39,7 @@ def test_rows_are_the_one_function_per_tracker_and_the_text_names_every_basis() 
     rows = energy_as_run_rows(results)
     assert list(rows) == ["sctn", "sctn_ann"]  # "still" counted nothing
     assert rows["sctn"] == energy_as_run(results[:2]) and rows["sctn_ann"] == energy_as_run(results[2:3])
-    sctn, twin = rows["sctn"], rows["sctn_ann"]
+    sctn = rows["sctn"]
     # per sequence: (2 inits + 20 segments, 1 init + 10 segments) averaged
     assert sctn["per_sequence"]["synaptic"]["ac_ops"] == pytest.approx((2 * 1e7 + 20 * 2.56e6 + 1e7 + 10 * 2.56e6) / 2)
     text = format_energy_as_run(rows)

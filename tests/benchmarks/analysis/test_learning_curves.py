@@ -13,8 +13,8 @@ def _write(path, model: str, seed: int, arscores: dict[int, float], losses: dict
            extra: str = "accuracy") -> str:
     """A checkpoint .json whose history holds validations at the steps of `losses` (or of `arscores`)."""
     losses = losses or {s: 1.0 / s for s in arscores}
-    val = [{"step": s, "loss": l, extra: 0.5} | ({"arscore": arscores[s]} if s in arscores else {})
-           for s, l in sorted(losses.items())]
+    val = [{"step": s, "loss": loss, extra: 0.5} | ({"arscore": arscores[s]} if s in arscores else {})
+           for s, loss in sorted(losses.items())]
     last = dict(val[-1])
     val.append(last)  # the final step is validated twice, as training does
     path.write_text(json.dumps({"model": model, "train_config": {"seed": seed},

@@ -71,7 +71,9 @@ target:
   shape: cube
   trajectory:
     interpolation: linear
-    keyframes: [{t: 0, location: [0, 0, 0], rotation_deg: [0, 0, 0]}, {t: 0.06, location: [0, 0, 0], rotation_deg: [0, 0, 18]}]
+    keyframes:
+      - {t: 0, location: [0, 0, 0], rotation_deg: [0, 0, 0]}
+      - {t: 0.06, location: [0, 0, 0], rotation_deg: [0, 0, 18]}
 """)
     with Dataset(_file(tmp_path / "s.h5", scene)) as ds:
         tags = segment_attributes(ds)

@@ -1,7 +1,7 @@
-"""A Dask worker preload for tests: benchmarks.experiments.ablation.run_one fails for the (row, seed) that the file named by
-DVSOT_TEST_FAIL_RUN holds ("ROW SEED always" or "ROW SEED once": then only its first attempt on any worker), and every
-row's tracker fine-tunes once at initialisation instead of the preset's 10 times: the tests that load it are about
-scheduling and retries, and the fine-tuning was most of a run's CPU time."""
+"""A Dask worker preload for tests: benchmarks.experiments.ablation.run_one fails for the (row, seed) that the file
+named by DVSOT_TEST_FAIL_RUN holds ("ROW SEED always" or "ROW SEED once": then only its first attempt on any worker),
+and every row's tracker fine-tunes once at initialisation instead of the preset's 10 times: the tests that load it are
+about scheduling and retries, and the fine-tuning was most of a run's CPU time."""
 
 import os
 from pathlib import Path

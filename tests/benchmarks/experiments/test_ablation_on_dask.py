@@ -1,6 +1,7 @@
-"""benchmarks.experiments.ablation --scheduler: each (row, seed) a Dask task on a real LocalCluster of two single-threaded
-workers (one cluster for the module, reached at its tcp:// address), on the two tiny CI scenes (--ci) and on two
-synthetic squares. The workers' trackers fine-tune once (fail_run_preload.py): these tests are about scheduling."""
+"""benchmarks.experiments.ablation --scheduler: each (row, seed) a Dask task on a real LocalCluster of two
+single-threaded workers (one cluster for the module, reached at its tcp:// address), on the two tiny CI scenes (--ci)
+and on two synthetic squares. The workers' trackers fine-tune once (fail_run_preload.py): these tests are about
+scheduling."""
 
 import json
 import logging

@@ -1,4 +1,5 @@
-"""benchmarks.experiments.robustness: kept frames re-simulated under presets and noise rates, tracked, tabled and plotted."""
+"""benchmarks.experiments.robustness: kept frames re-simulated under presets and noise rates, tracked, tabled and
+plotted."""
 
 from __future__ import annotations
 

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from benchmarks.trackers.rct import ClusterSet, RCTParams, RCTTracker
 from dvsot.dataset import Segment
@@ -114,7 +115,7 @@ def test_box_size_modes_and_options():
     tr.init(segs[0], segs[0].box, W, H)
     box = tr.update(segs[1])
     np.testing.assert_allclose(box[2:], [64, 64])   # 2 * 0.05 * 640
-    with pytest.raises(Exception):
+    with pytest.raises(ValidationError, match="no_such_option"):
         RCTTracker(no_such_option=1)
     with pytest.raises(ValueError):
         RCTTracker().init(segs[0], np.full(4, np.nan), W, H)

@@ -1,4 +1,5 @@
-"""Chunks encoded outside HDF5 (dvsot.dataset.h5chunks) are the bytes HDF5's filters store; the writer's files read back."""
+"""Chunks encoded outside HDF5 (dvsot.dataset.h5chunks) are the bytes HDF5's filters store; the writer's files read
+back."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""SegmentDataset: picklable, opened lazily per worker, tonic-style structured events, in a DataLoader with 2 workers."""
+"""SegmentDataset: picklable, opened lazily per worker, tonic-style structured events, in a DataLoader with 2
+workers."""
 
 from __future__ import annotations
 

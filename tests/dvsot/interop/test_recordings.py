@@ -1,4 +1,5 @@
-"""A recorded sequence (AEDAT4 events + FE108-style boxes at annotation times) imported and scored at annotations only."""
+"""A recorded sequence (AEDAT4 events + FE108-style boxes at annotation times) imported and scored at annotations
+only."""
 
 from __future__ import annotations
 

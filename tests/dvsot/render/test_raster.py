@@ -103,7 +103,9 @@ target:
   shape: star
   size_m: 2.5
   trajectory:
-    keyframes: [{t: 0, location: [-1, 0, 0], rotation_deg: [10, 20, 0]}, {t: 0.1, location: [1, 0, 0.5], rotation_deg: [40, 120, 30]}]
+    keyframes:
+      - {t: 0, location: [-1, 0, 0], rotation_deg: [10, 20, 0]}
+      - {t: 0.1, location: [1, 0, 0.5], rotation_deg: [40, 120, 30]}
 lights: []
 render: {threads: 2, amodal_mask: render}
 """

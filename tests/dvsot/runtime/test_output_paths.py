@@ -1,9 +1,13 @@
 """Output-path checks every command runs before it starts work."""
 
+import json
+import os
+
 import pytest
 
-from dvsot.core.errors import UserError
-from dvsot.runtime.outputs import output_dir, output_file
+from dvsot.core.errors import RunError, UserError
+from dvsot.runtime import staging
+from dvsot.runtime.outputs import output_dir, output_file, replacing, run_outputs
 
 
 def test_output_file_accepts_a_new_or_existing_file(tmp_path):
@@ -39,13 +43,6 @@ def test_output_dir(tmp_path):
 
 
 # --- run-atomic outputs, temp names, stale temps ---
-
-import json
-import os
-
-from dvsot.core.errors import RunError
-from dvsot.runtime import staging
-from dvsot.runtime.outputs import replacing, run_outputs
 
 
 def test_temp_names_carry_host_pid_and_a_random_token(tmp_path):
