@@ -19,8 +19,8 @@ CASES = [  # (plan_benchmark's arguments besides trackers=["rct"], the message b
     (dict(options=["sctn.fast=false"]), "options 'sctn.fast=false': tracker 'sctn' is not in this run",
      "--option 'sctn.fast=false': tracker 'sctn' is not in this run"),
     (dict(checkpoint="c.pt"),
-     "checkpoint c.pt: only used by trackers sctn, sctn_ann, siamfc, goturn, siamrpn or siammask",
-     "--checkpoint c.pt: only used by --tracker sctn, sctn_ann, siamfc, goturn, siamrpn or siammask"),
+     "checkpoint c.pt: only used by trackers sctn, sctn_ann, siamfc, goturn, siamrpn, siammask, ocean or automatch",
+     "--checkpoint c.pt: only used by --tracker sctn, sctn_ann, siamfc, goturn, siamrpn, siammask, ocean or automatch"),
     (dict(data=None), "or give data", "or give --data"),  # no default data where the run starts
 ]
 
