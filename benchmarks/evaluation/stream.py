@@ -47,8 +47,8 @@ from benchmarks.evaluation.ope import PRECISION_PX, centre_errors, precision_cur
 from benchmarks.trackers.base import Tracker
 from dvsot.core.errors import UserError, exception_line
 from dvsot.dataset import Dataset, Segment
-from dvsot.dataset.format import BoxTrack
 from dvsot.dataset.boxes import iou_xywh
+from dvsot.dataset.format import BoxTrack
 
 DEFAULT_QUERY_HZ = 1000.0
 WINDOWS = ("last", "since")  # the events a call gets: the last segment_us, or everything since the previous call
