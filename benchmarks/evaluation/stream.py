@@ -23,6 +23,9 @@ Rules (one pass, as STARE: no re-initialisation):
    so it is scored from the same run, as its own row.
 6. Latency-free reference: the same tracker called at every segment end (10 ms), each answer available at once,
    scored at the same queries; the drop is the streaming score's loss against it.
+7. A hidden target (the protocols' rule 6, docs/benchmarks.md): a query where the target is on the sensor but
+   wholly covered (an amodal box and no visible one, in a file that records visibility) is scored apart: its IoU
+   is kept in `hidden_iou` and counts in none of the scores above. Initialisation waits for a visible target.
 
 Latency models (benchmarks.evaluation.latency): measured wall time, measured times a factor, or a declared cost
 (operations the tracker counts times a hardware profile's time per operation: deterministic).
@@ -37,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from benchmarks.evaluation.instant_truth import query_times, truth_at
+from benchmarks.evaluation.instant_truth import InstantTruth, query_times, truth_at
 from benchmarks.evaluation.latency import FREE, LatencyModel
 from benchmarks.evaluation.metrics import FAILURE_IOU, ar_score
 from benchmarks.evaluation.ope import PRECISION_PX, centre_errors, precision_curve, success_curve
@@ -45,6 +48,7 @@ from benchmarks.trackers.base import Tracker
 from dvsot.core.errors import UserError, exception_line
 from dvsot.dataset import Dataset, Segment
 from dvsot.dataset.boxes import iou_xywh
+from dvsot.dataset.format import BoxTrack
 
 DEFAULT_QUERY_HZ = 1000.0
 WINDOWS = ("last", "since")  # the events a call gets: the last segment_us, or everything since the previous call
@@ -72,6 +76,7 @@ class StreamRun:
     centre_error: np.ndarray
     predictive_iou: np.ndarray
     predictive_centre_error: np.ndarray
+    hidden_iou: np.ndarray | None = None  # per query: IoU where the target is wholly hidden (rule 7), else NaN
 
 
 @dataclass
@@ -92,10 +97,12 @@ def _window(dataset: Dataset, index: int, t0_us: int, t1_us: int) -> Segment:
 
 
 def _first_box(dataset: Dataset, n_segments: int, min_box_px: float) -> tuple[int, np.ndarray] | None:
-    """(segment index, box) of the first scored segment with a usable box, or None."""
+    """(segment index, box) of the first scored segment with a usable box and a visible target (rule 7), or None."""
     gt, scored = dataset.segment_boxes()[:n_segments], dataset.segment_scored()[:n_segments]
+    absent = dataset.segment_absent()
+    seen = np.ones(len(gt), bool) if absent is None else ~np.asarray(absent[:n_segments], bool)
     with np.errstate(invalid="ignore"):
-        ok = scored & np.isfinite(gt).all(axis=1) & (gt[:, 2] >= min_box_px) & (gt[:, 3] >= min_box_px)
+        ok = scored & seen & np.isfinite(gt).all(axis=1) & (gt[:, 2] >= min_box_px) & (gt[:, 3] >= min_box_px)
     hits = np.flatnonzero(ok)
     return (int(hits[0]), gt[hits[0]].copy()) if hits.size else None
 
@@ -192,12 +199,27 @@ def run_stream(tracker: Tracker, dataset: Dataset, model: LatencyModel, query_hz
     windows, latency, available, boxes = _calls(tracker, dataset, model, first, box, end_us, window, step_us)
     track = dataset.boxes()
     queries = query_times(track, windows[0, 1], end_us, query_hz, dataset.annotated)
-    truth = truth_at(track, queries).xywh
+    instant = truth_at(track, queries)
+    truth = instant.xywh
+    hidden = hidden_queries(track, instant)
     iou, err = score_queries(boxes, available, queries, truth, min_box_px)
+    hidden_iou = np.where(hidden, iou, np.nan)
+    iou, err = np.where(hidden, np.nan, iou), np.where(hidden, np.nan, err)
     predicted = extrapolate(boxes, windows[:, 1], latency)
     predicted[0] = boxes[0]  # the given box is not a tracker's answer
     p_iou, p_err = score_queries(predicted, available, queries, truth, min_box_px)
-    return StreamRun(model.name, windows, latency, available, boxes, predicted, queries, iou, err, p_iou, p_err)
+    p_iou, p_err = np.where(hidden, np.nan, p_iou), np.where(hidden, np.nan, p_err)
+    return StreamRun(model.name, windows, latency, available, boxes, predicted, queries, iou, err, p_iou, p_err,
+                     hidden_iou)
+
+
+def hidden_queries(track: BoxTrack, instant: InstantTruth) -> np.ndarray:
+    """bool (Q,): queries where the target is on the sensor and wholly covered (rule 7); none for a file that
+    records no visibility (a recording's visible box is not known)."""
+    if track.visibility is None:
+        return np.zeros(len(instant.t), bool)
+    on_sensor = np.isfinite(instant.xywh).all(axis=1)
+    return on_sensor & ~np.isfinite(instant.xywh_visible).all(axis=1)
 
 
 def run_sequences(tracker_factory: Callable[[], Tracker], dataset: Dataset, models: list[LatencyModel], name: str,

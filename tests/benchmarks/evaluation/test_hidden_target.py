@@ -135,3 +135,38 @@ def test_bench_scores_hidden_segments_apart_or_skips_them(tmp_path, capsys):
         assert scores["all"]["segments"] == 10
         assert (scores["absent"]["segments"] if "absent" in scores else None) == absent
     capsys.readouterr()
+
+
+class Missing:
+    """A streaming tracker that always answers a box off the target (IoU 0): every counted query fails."""
+
+    operations = ("ac_ops",)
+
+    def init(self, segment, box_xywh, width, height):
+        self.init_at = segment.t1_us
+
+    def update(self, segment):
+        return np.array([60.0, 60.0, 20.0, 20.0])
+
+    def energy_per_segment(self):
+        return {"ac_ops": 5e6}  # 5 ms a call on the cpu profile
+
+    def energy_per_init(self):
+        return {"ac_ops": 5e6}
+
+
+def test_the_streaming_protocol_scores_hidden_queries_apart_and_starts_on_a_visible_target(tmp_path):
+    from benchmarks.evaluation.latency import LatencyModel
+    from benchmarks.evaluation.stream import run_stream
+
+    path = _file(tmp_path / "s.h5", 14, [0, 1, 5, 6, 7])
+    tracker = Missing()
+    with Dataset(path) as ds:
+        run = run_stream(tracker, ds, LatencyModel("declared", profile="cpu"))
+    assert tracker.init_at == 30_000  # segments 0 and 1 are hidden: the first visible one is segment 2
+    hidden = np.isfinite(run.hidden_iou)
+    # queries next to the hidden samples (rows 6..8, 60..80 ms, interpolated in between) are hidden ones
+    assert hidden.any() and np.all((run.query_us[hidden] > 50_000) & (run.query_us[hidden] < 90_000))
+    assert np.isnan(run.iou[hidden]).all() and np.isnan(run.predictive_iou[hidden]).all()
+    counted = np.isfinite(run.iou)
+    assert counted.sum() + hidden.sum() == len(run.query_us)  # every query counts once, in one place
