@@ -56,7 +56,13 @@ def peak_bytes(params: Any, width: int, height: int, interval_us: float, render:
 
 
 def check_memory(params: Any, width: int, height: int, interval_us: float, what: str, render: bool = False) -> None:
-    """UserError (one line, naming `what` and the estimate) if the run would need more than its share of memory."""
+    """UserError (one line, naming `what` and the estimate) if the run would need more than its share of memory;
+    a noise rate over the simulator's own bound is refused first, in the simulator's words."""
+    from dvsot.events.simulator import noise_rate_problem
+
+    problem = noise_rate_problem(params, width, height, interval_us)
+    if problem:
+        raise UserError(problem)
     usable = usable_memory_bytes()
     if usable is None:
         return

@@ -491,13 +491,9 @@ class EventSimulator:
 
     def _check_noise(self, t0: int, t1: int) -> None:
         """UserError if shot noise or leak would draw more than MAX_NOISE_EVENTS events in (t0, t1] (us)."""
-        for field in ("shot_noise_hz", "leak_hz"):
-            rate = getattr(self.params, field)
-            mean = rate * self.width * self.height * (t1 - t0) * 1e-6
-            if mean > MAX_NOISE_EVENTS:
-                raise UserError(f"{field} {rate:g} over {self.width}x{self.height} px gives {mean:.3g} noise events "
-                                f"between frames {(t1 - t0) / 1000:g} ms apart, more than the bound of "
-                                f"{MAX_NOISE_EVENTS:g}")
+        problem = noise_rate_problem(self.params, self.width, self.height, t1 - t0)
+        if problem:
+            raise UserError(problem)
 
     def _noise(self, t0: int, t1: int) -> tuple[np.ndarray, ...]:
         """Shot-noise and leak events (pixel index, float us time, polarity) in (t0, t1]."""
@@ -548,3 +544,15 @@ def _merge_noise(signal: EventBatch, noise: tuple[np.ndarray, ...], width: int, 
     pix = pix[order]
     return EventBatch((pix % width).astype(np.uint16), (pix // width).astype(np.uint16), t_rel[order] + t0,
                       pol[order], flag[order])
+
+
+def noise_rate_problem(params: EventParams, width: int, height: int, interval_us: float) -> str | None:
+    """Why shot noise or leak at `params`' rates would draw more than MAX_NOISE_EVENTS events over a width x height
+    sensor between frames interval_us microseconds apart, or None."""
+    for field in ("shot_noise_hz", "leak_hz"):
+        rate = getattr(params, field)
+        mean = rate * width * height * interval_us * 1e-6
+        if mean > MAX_NOISE_EVENTS:
+            return (f"{field} {rate:g} over {width}x{height} px gives {mean:.3g} noise events between frames "
+                    f"{interval_us / 1000:g} ms apart, more than the bound of {MAX_NOISE_EVENTS:g}")
+    return None

@@ -76,7 +76,7 @@ def test_the_target_id_comes_from_the_table(tmp_path: Path) -> None:
         assert ds.target_id == 2
         seg = ds.segment(1)
     assert (seg.events.object == 1).any()
-    _, _, objects, mask = SegmentDataset(path, labels=True, with_box=False)[1]
+    _, _, objects, mask, _ = SegmentDataset(path, labels=True, with_box=False)[1]
     assert not mask.any()  # id 1's events are the distractor's, not the target's
     with Dataset(_labelled(tmp_path / "plain.h5")) as ds:
         assert ds.target_id == 1

@@ -258,7 +258,7 @@ def test_the_hide_and_leave_example_is_tagged_as_it_plays(tmp_path):
     with Dataset(out) as ds:
         tags = segment_tags(ds)
         t = (np.arange(ds.num_segments) + 1) * ds.segment_us / 1e6
-    early, hidden, gone = t < 0.4, (t > 0.8) & (t < 1.1), t > 2.4
+    early, hidden, gone = t < 0.3, (t > 0.8) & (t < 1.1), t > 2.4  # the wall reaches the cube at 0.3 s
     assert not any(tags[k][early].any() for k in tags)  # seen whole, on the sensor: no tag
     assert tags["full_occlusion"][hidden].all() and tags["occlusion"][hidden].all()
     assert not tags["out_of_view"][hidden].any() and not tags["cut_by_image"][hidden].any()
