@@ -21,6 +21,7 @@ import os
 import uuid
 import weakref
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -333,15 +334,24 @@ class TaskRunner:
         self.scheduler = scheduler
         self.cluster = Cluster(scheduler) if scheduler is not None else None
         self.client = None
+        self._stack: ExitStack | None = None
 
     def __enter__(self) -> TaskRunner:
-        if self.cluster is not None:
-            self.client = self.cluster.__enter__()
+        from dvsot.runtime import interrupts
+
+        with ExitStack() as stack:
+            # the manifest written before the run (and after each task) is its progress, not the command's end: a
+            # signal while the cluster starts or the tasks run stops the run, and its lease, at once
+            stack.enter_context(interrupts.going_on())
+            if self.cluster is not None:
+                self.client = stack.enter_context(self.cluster)
+            self._stack = stack.pop_all()
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.cluster is not None:
-            self.cluster.__exit__(*exc)
+        stack, self._stack = self._stack, None
+        if stack is not None:
+            stack.__exit__(*exc)
 
     def hosts(self) -> dict[str, int] | None:
         """{host: number of workers on it} on a cluster (host_workers), None in this process."""

@@ -9,6 +9,8 @@ lease, dvsot.runtime.staging.RunLease) as one too, so that `check()` and every c
 Committed: once a command's commit (dvsot.runtime.outputs) starts renaming its outputs in the main process, those
 outputs are in place; a signal from then on is recorded as late (`late()`) and interrupts nothing, until the command
 goes on with other work (`check()`, or a new output staged: `resume()`), where it stops the run as any signal does.
+Inside `going_on()` (a command's tasks being run and waited for) a commit is the run's progress (a manifest rewritten
+after each task), not its end: a signal there stops the run at once.
 A second signal after a commit is raised at once. The command line reports a late signal and exits 0. In the
 `dvsot` process itself (`at_startup`), a signal before the command line's handlers are in place ends the process
 with one line, and one after the command has finished (interpreter exit, Blender's clean-up) is only recorded.
@@ -57,7 +59,7 @@ def interruption(exc: BaseException) -> KeyboardInterrupt | None:
 
 
 _state = {"depth": 0, "pending": None, "parent": None, "raised": None, "seen": None, "last": False,
-          "finished": False, "late": None, "installed": False}
+          "finished": False, "late": None, "installed": False, "going_on": 0}
 
 
 def _handler(signum: int, frame) -> None:
@@ -114,7 +116,7 @@ def last_step() -> Iterator[None]:
 def finish() -> None:
     """Called as a commit starts its renames: in a command's main thread (not a task's), its outputs are committed."""
     own = _state["installed"] and threading.current_thread() is threading.main_thread() and _guard.get() is None
-    if _state["last"] or own:
+    if (_state["last"] or own) and not _state["going_on"]:
         _state["finished"] = True
 
 
@@ -130,6 +132,18 @@ def resume() -> None:
         signum, _state["late"] = _state["late"], None
         if signum:
             raise Interrupted(signum)
+
+
+@contextmanager
+def going_on() -> Iterator[None]:
+    """The block is more work after a commit (tasks started, run and waited for): a late signal stops it at entry,
+    and a commit inside it (the run's progress) never counts as the command's last, so a signal stops the block."""
+    resume()
+    _state["going_on"] += 1
+    try:
+        yield
+    finally:
+        _state["going_on"] -= 1
 
 
 def late() -> int | None:

@@ -105,3 +105,33 @@ def test_ctrl_c_on_bench_with_a_scheduler_is_one_line(tmp_path, delay):
         pytest.skip("the run ended before the signal")
     assert p.returncode == 130 and err.strip().splitlines() == ["dvsot bench: interrupted (SIGINT)"], err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_signal_while_tasks_run_after_a_manifest_commit_stops_the_run(tmp_path):
+    """A manifest written before or between tasks is the run's progress, not its end: no signal is taken as late."""
+    from dvsot.runtime import interrupts
+    from dvsot.runtime.dask_tasks import TaskRunner
+    from dvsot.runtime.outputs import replacing
+
+    def manifest() -> None:
+        with replacing(tmp_path / "manifest.json") as tmp:
+            tmp.write_text("{}")
+
+    saved = interrupts.install()
+    try:
+        manifest()
+        assert interrupts.committed()
+        os.kill(os.getpid(), signal.SIGINT)  # after the manifest, before the tasks: late so far
+        with pytest.raises(interrupts.Interrupted):
+            with TaskRunner(None):  # starting the tasks is more work: the signal stops the run here
+                pytest.fail("the run went on")
+        manifest()
+        with TaskRunner(None) as runner:
+            with pytest.raises(interrupts.Interrupted):
+                runner.run(manifest, [(), ()])  # each task rewrites the manifest; then the signal
+                assert not interrupts.committed()
+                os.kill(os.getpid(), signal.SIGINT)
+                pytest.fail("the signal was taken as late")
+        assert interrupts.late() is None
+    finally:
+        interrupts.restore(saved)
