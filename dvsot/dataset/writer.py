@@ -193,17 +193,13 @@ class DatasetWriter:
         if self._has_signal is None:
             self._has_signal = batch.signal is not None
             if self._has_signal:
-                self._file["events"].create_dataset("signal", shape=(0,), maxshape=(None,), dtype=np.uint8,
-                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
-                                                    **self._filter)
+                self._on_writer(self._create_column, "signal")
         elif self._has_signal != (batch.signal is not None):
             raise ValueError("either every event batch carries signal flags or none does")
         if self._has_kind is None:
             self._has_kind = batch.noise_kind is not None
             if self._has_kind:
-                self._file["events"].create_dataset("noise_kind", shape=(0,), maxshape=(None,), dtype=np.uint8,
-                                                    chunks=(_EVENT_CHUNK,), fletcher32=self._checksum,
-                                                    **self._filter)
+                self._on_writer(self._create_column, "noise_kind")
         elif self._has_kind != (batch.noise_kind is not None):
             raise ValueError("either every event batch carries noise kinds or none does")
         # ms boundaries up to the newest timestamp are now decided by this batch or earlier ones.
@@ -244,11 +240,29 @@ class DatasetWriter:
             columns["noise_kind"] = joined.noise_kind.astype(np.uint8, copy=False)
         if self._objects is not None:
             columns["object"] = joined.object.astype(np.uint8, copy=False)
-        if self._io is None:
-            self._io = OrderedWorker(f"write {self.path.name}")
-        self._io.submit(self._write_columns, n0, n1, columns)
+        self._on_writer(self._write_columns, n0, n1, columns)
         self._count = n1
         self._buffer, self._buffered = ([rest], len(rest)) if len(rest) else ([], 0)
+
+    def _on_writer(self, fn: Any, *args: Any) -> None:
+        """Run fn(*args) on the writer thread, after everything handed to it before.
+
+        Every change to the file between opening and close goes through here, in call order, so the objects are
+        created and their space allocated in the same order whatever the threads' timing: the same inputs give
+        byte-identical files.
+        """
+        if self._io is None:
+            self._io = OrderedWorker(f"write {self.path.name}")
+        self._io.submit(fn, *args)
+
+    def _create_column(self, name: str) -> None:
+        """Create the empty event column `name` of uint8 (runs on the writer thread)."""
+        try:
+            self._file["events"].create_dataset(name, shape=(0,), maxshape=(None,), dtype=np.uint8,
+                                                chunks=(_EVENT_CHUNK,), fletcher32=self._checksum, **self._filter)
+        except BaseException:
+            self._discard_writes()
+            raise
 
     def _write_columns(self, n0: int, n1: int, columns: dict[str, np.ndarray]) -> None:
         """Write events n0..n1-1 (runs on the writer thread; the only thread touching the file until close).
@@ -355,9 +369,7 @@ class DatasetWriter:
         img = img.astype(np.uint8, copy=False)
         if not self._known_ids[img].all():
             raise ValueError(f"mask id {int(img[~self._known_ids[img]][0])} is not in the object table")
-        if self._io is None:
-            self._io = OrderedWorker(f"write {self.path.name}")
-        self._io.submit(self._write_mask, self._masks, img.copy())
+        self._on_writer(self._write_mask, self._masks, img.copy())
         self._masks += 1
 
     def _write_mask(self, row: int, img: np.ndarray) -> None:

@@ -171,3 +171,24 @@ def test_segment_dataset_labels_give_the_rendered_silhouette_and_shares(tmp_path
     *_, batch = collate_segments([data[0], data[3]])
     assert tuple(batch["silhouette"].shape) == (2, H, W) and batch["absent"].tolist() == [False, True]
     assert batch["truncation"][1].item() == 1.0
+
+
+def test_the_same_scene_gives_the_same_bytes_however_slow_the_writer_thread(tmp_path, monkeypatch):
+    """The first frame gives no events but a mask: the file's objects are still made in one order, so a writer
+    thread that lags behind the caller changes no byte."""
+    import time
+
+    from dvsot.dataset.writer import DatasetWriter
+
+    (tmp_path / "prompt").mkdir()
+    (tmp_path / "late").mkdir()
+    prompt, _, _, _ = write_scene(tmp_path / "prompt" / "s.h5")
+    write_mask = DatasetWriter._write_mask
+
+    def slow(self, row, img):
+        time.sleep(0.2)  # the caller meanwhile appends the next frames' events
+        write_mask(self, row, img)
+
+    monkeypatch.setattr(DatasetWriter, "_write_mask", slow)
+    late, _, _, _ = write_scene(tmp_path / "late" / "s.h5")
+    assert prompt.read_bytes() == late.read_bytes()
