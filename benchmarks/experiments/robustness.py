@@ -421,17 +421,11 @@ def _guarded(work) -> int:
               file=sys.stderr)
         return 1
     except BaseException as caught:
-        if isinstance(caught, SystemExit):
+        status = None if isinstance(caught, SystemExit) else interrupts.stopped_status(caught, prog)
+        if status is None:
             raise
-        exc = interrupts.interruption(caught)
-        if exc is None and interrupts.seen():
-            exc = interrupts.Interrupted(interrupts.seen())
-        if exc is None:
-            raise
-        why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
-        print(f"{prog}: interrupted ({why})", file=sys.stderr)
         interrupted = True
-        return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
+        return status
     finally:
         interrupts.restore(saved)
         if interrupted:

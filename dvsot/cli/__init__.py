@@ -130,18 +130,12 @@ def _main(argv: list[str] | None) -> int:
     except (SystemExit, GeneratorExit):
         raise
     except BaseException as caught:
-        exc = interrupts.interruption(caught)
-        if exc is None and interrupts.seen():
-            # a signal inside a library (an extension module's import, a callback) that came out as that library's
-            # own error, its cause dropped (pyo3's PanicException, "numpy failed to import"): still the signal's
-            exc = interrupts.Interrupted(interrupts.seen())
-        if exc is None:  # an exception of its own
-            raise
         _close_progress_bars()  # else each redraws itself at exit, under the message
-        why = exc.why if isinstance(exc, interrupts.Interrupted) else "SIGINT"
-        print(f"dvsot {args.command}: interrupted ({why})", file=sys.stderr)
+        status = interrupts.stopped_status(caught, f"dvsot {args.command}")
+        if status is None:  # an exception of its own
+            raise
         interrupted = True
-        return exc.exit_status if isinstance(exc, interrupts.Interrupted) else 130
+        return status
     finally:
         interrupts.restore(saved)
         if interrupted:

@@ -102,6 +102,21 @@ def seen() -> int | None:
     return _state["seen"]
 
 
+def stopped_status(caught: BaseException, prog: str) -> int | None:
+    """The exit status of a run that `caught` ended because of a signal, its one line printed on stderr; None when
+    `caught` is an exception of the run's own (the caller re-raises it)."""
+    exc = interruption(caught)
+    if exc is None and seen():
+        # a signal inside a library (an extension module's import, a callback) that came out as that library's own
+        # error, its cause dropped (pyo3's PanicException, "numpy failed to import"): still the signal's
+        exc = Interrupted(seen())
+    if exc is None:
+        return None
+    why = exc.why if isinstance(exc, Interrupted) else "SIGINT"
+    print(f"{prog}: interrupted ({why})", file=sys.stderr)
+    return exc.exit_status if isinstance(exc, Interrupted) else 130
+
+
 @contextmanager
 def last_step() -> Iterator[None]:
     """The block is the command's last step: once its final commit starts renaming (`finish`), the run has completed,
