@@ -128,7 +128,7 @@ def calls_text(run) -> str:
     w.writerow(["kind", "t0_us", "t1_us", "latency_s", "available_us", "x", "y", "w", "h", "px", "py", "pw", "ph"])
     for k in range(len(run.latency_s)):
         w.writerow(["init" if k == 0 else "update", int(run.window[k, 0]), int(run.window[k, 1]),
-                    f"{run.latency_s[k]:.9g}", int(run.available_us[k]),
+                    repr(float(run.latency_s[k])), int(run.available_us[k]),
                     *(f"{v:.3f}" for v in run.boxes[k]), *(f"{v:.3f}" for v in run.predicted[k])])
     return text.getvalue()
 
