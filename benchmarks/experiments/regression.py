@@ -14,12 +14,26 @@ updating the reference, so the reference always says what the code does. This co
 change against twice the seed spread instead (what a change of seed alone would give).
 
     python -m benchmarks.experiments.regression --update-reference --seeds 5   # re-baseline, spread over 5 seeds
+
+The streaming regression (`--stream`) needs no Blender: `dvsot bench --protocol stream` with declared latencies
+(STREAM_LATENCY) runs the shipped checkpoints of every tracker with a declared cost (STREAM_TRACKERS) on a
+numpy-made sequence (tests/synthetic.py: a textured square crossing a wall, 160x120, 0.3 s), in a few seconds.
+A declared run is deterministic, so its figures (per tracker, predictive row and latency model: A, R, ARscore,
+AUC, P@20, counted queries, calls and the latency distribution) are held to the committed reference
+(benchmarks/experiments/reference/ci_stream.json) to STREAM_TOLERANCE: 1e-9 on a score, 1e-12 s on a latency,
+0 on a count. On one machine a rerun is bit-identical; the tolerance admits only the last-bit differences that
+float arithmetic may show on another CPU (summation order), while a changed window, answer or operation count
+moves a figure far beyond it.
+
+    python -m benchmarks.experiments.regression --stream                      # run, compare, exit 1 on a change
+    python -m benchmarks.experiments.regression --stream --update-reference   # rewrite ci_stream.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 from pathlib import Path
@@ -27,6 +41,19 @@ from pathlib import Path
 REFERENCE_DIR = Path(__file__).resolve().parent / "reference"
 REFERENCE = REFERENCE_DIR / "ci_metrics.json"
 TOLERANCE = {"ARscore": 0.05, "A": 0.05, "R": 0.08}
+
+STREAM_REFERENCE = REFERENCE_DIR / "ci_stream.json"
+STREAM_TRACKERS = ("sctn", "sctn_ann", "siamfc")  # the shipped trackers that count operations (a declared cost)
+STREAM_LATENCY = ("declared:cpu", "declared:loihi")
+# fewer candidates and fine-tuning steps than the paper's keep the run to seconds; every call is still counted
+STREAM_OPTIONS = ("sctn.n_candidates=64", "sctn.finetune_iters=2", "sctn_ann.n_candidates=64",
+                  "sctn_ann.finetune_iters=2")
+STREAM_SETTINGS = {"latency": list(STREAM_LATENCY), "query_hz": 250.0, "window": "last", "predictive": True}
+STREAM_SEQUENCE = {"duration_ms": 300, "split": "test", "seed": 0}  # tests/synthetic.moving_square_file's arguments
+SCORES = ("A", "R", "ARscore", "AUC", "P@20")
+LATENCIES = ("mean_s", "p50_s", "p90_s", "max_s")
+STREAM_TOLERANCE = {**{m: 1e-9 for m in SCORES}, "queries": 0, "calls": 0,
+                    **{f"latency_{k}": 1e-12 for k in LATENCIES}}
 
 
 def run_ci_benchmark(workdir: Path, seed: int = 0) -> dict:
@@ -93,23 +120,94 @@ def compare(reference: dict, current: dict, tolerance: dict = TOLERANCE, spread:
             problems.append(f"{tracker}: missing from this run")
             continue
         for metric, tol in tols.get(tracker, tols["*"]).items():
-            if cur[metric] < ref[metric] - tol:
-                problems.append(f"{tracker} {metric} {cur[metric]:.3f} < reference {ref[metric]:.3f} - {tol:.3f}")
-            elif cur[metric] > ref[metric] + tol:
-                problems.append(f"{tracker} {metric} {cur[metric]:.3f} > reference {ref[metric]:.3f} + {tol:.3f}: "
-                                "a gain beyond the seed spread; lock it in with --update-reference")
+            c, r = cur[metric], ref[metric]
+            if math.isnan(c) != math.isnan(r):  # NaN compares false both ways: a figure appearing or vanishing
+                problems.append(f"{tracker} {metric} {c:.6g}: reference {r:.6g}")
+            elif c < r - tol:
+                problems.append(f"{tracker} {metric} {c:.6g} < reference {r:.6g} - {tol:.3g}")
+            elif c > r + tol:
+                problems.append(f"{tracker} {metric} {c:.6g} > reference {r:.6g} + {tol:.3g}: "
+                                "a rise beyond tolerance; lock it in with --update-reference")
     return problems
+
+
+def stream_sequence(workdir: Path) -> Path:
+    """The streaming regression's input, made in numpy (no Blender) into workdir (once)."""
+    path = workdir / "ci_stream.h5"
+    if not path.is_file():
+        tests = Path(__file__).resolve().parents[2] / "tests"
+        if not (tests / "synthetic.py").is_file():
+            raise RuntimeError(f"{tests / 'synthetic.py'}: missing; the streaming regression runs from a clone")
+        if str(tests) not in sys.path:
+            sys.path.insert(0, str(tests))
+        from synthetic import moving_square_file
+
+        moving_square_file(path, **STREAM_SEQUENCE)
+    return path
+
+
+def stream_figures(summary: dict) -> dict:
+    """{"ROW MODEL": {figure: value}} of a streaming summary's pooled cells (ROW: a tracker or its predictive row;
+    MODEL: a latency model or free): the scores, counted queries, calls and latency distribution."""
+    from benchmarks.evaluation.metrics import ALL
+
+    out = {}
+    for row, per in summary["rows"].items():
+        if per.get("failed"):
+            raise RuntimeError(f"{row} crashed on the streaming CI sequence: {per['failed']}")
+        for model, cells in per.items():
+            v = cells[ALL]
+            out[f"{row} {model}"] = {**{m: v[m] for m in SCORES}, "queries": v["queries"],
+                                     "calls": v["latency"]["calls"],
+                                     **{f"latency_{k}": v["latency"][k] for k in LATENCIES}}
+    return out
+
+
+def run_ci_stream(workdir: Path) -> dict:
+    """The declared-latency streaming benchmark of the shipped trackers on the numpy-made sequence; its figures."""
+    import warnings
+
+    from benchmarks.bench.plan import run_benchmark
+
+    data = stream_sequence(workdir)
+    with warnings.catch_warnings():  # the shipped checkpoints' recipe notes are not the regression's concern
+        warnings.simplefilter("ignore")
+        run = run_benchmark(list(STREAM_TRACKERS), data=[str(data)], out_dir=workdir / "stream", jobs=1,
+                            options=STREAM_OPTIONS, protocol="stream", progress=False, energy=False,
+                            stream=STREAM_SETTINGS)
+    return stream_figures(run.summary)
+
+
+def stream_main(update: bool, workdir: Path) -> int:
+    """Run the streaming regression; compare with (or rewrite) ci_stream.json."""
+    current = run_ci_stream(workdir)
+    print(json.dumps(current, indent=2))
+    if update:
+        STREAM_REFERENCE.write_text(json.dumps({
+            "command": "python -m benchmarks.experiments.regression --stream --update-reference",
+            "trackers": list(STREAM_TRACKERS), "options": list(STREAM_OPTIONS), "settings": STREAM_SETTINGS,
+            "sequence": {"made_by": "tests/synthetic.py moving_square_file", **STREAM_SEQUENCE},
+            "tolerance": STREAM_TOLERANCE, "figures": current}, indent=2) + "\n")
+        print(f"reference written: {STREAM_REFERENCE}")
+        return 0
+    problems = compare(json.loads(STREAM_REFERENCE.read_text())["figures"], current, STREAM_TOLERANCE)
+    for p in problems:
+        print("REGRESSION: " + p, file=sys.stderr)
+    return 1 if problems else 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CI benchmark; compare with (or rewrite) the reference."""
     parser = argparse.ArgumentParser(description="CI regression of tracking metrics")
-    parser.add_argument(
-        "--update-reference", action="store_true", help="rewrite benchmarks/experiments/reference/ci_metrics.json"
-    )
+    parser.add_argument("--update-reference", action="store_true",
+                        help="rewrite the reference (reference/ci_metrics.json; ci_stream.json with --stream)")
     parser.add_argument("--seeds", type=int, default=5, help="training seeds for the spread (with --update-reference)")
+    parser.add_argument("--stream", action="store_true",
+                        help="the declared-latency streaming regression instead (reference/ci_stream.json; no Blender)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="dvsot-ci-") as tmp:
+        if args.stream:
+            return stream_main(args.update_reference, Path(tmp))
         if args.update_reference:
             current, spread = seed_spread(Path(tmp), args.seeds)
         else:

@@ -1,10 +1,26 @@
-"""The CI metric check: fails when a metric is pushed below its tolerance; the real tiny benchmark vs the reference."""
+"""The CI metric checks: fail when a metric moves beyond its tolerance; the real tiny benchmark vs the reference; the
+declared-latency streaming run vs its reference, and a changed figure failing it."""
 
 import json
+import math
 
 import pytest
 
-from benchmarks.experiments.regression import REFERENCE, TOLERANCE, compare, run_ci_benchmark
+from benchmarks.experiments import regression
+from benchmarks.experiments.regression import (
+    REFERENCE,
+    STREAM_LATENCY,
+    STREAM_OPTIONS,
+    STREAM_REFERENCE,
+    STREAM_SEQUENCE,
+    STREAM_SETTINGS,
+    STREAM_TOLERANCE,
+    STREAM_TRACKERS,
+    TOLERANCE,
+    compare,
+    run_ci_benchmark,
+    run_ci_stream,
+)
 
 REF = {"sctn": {"A": 0.7, "R": 0.9, "ARscore": 0.85}, "rct": {"A": 0.5, "R": 0.6, "ARscore": 0.58}}
 
@@ -34,3 +50,58 @@ def test_ci_benchmark_meets_the_committed_reference(tmp_path):
     ref = json.loads(REFERENCE.read_text())
     current = run_ci_benchmark(tmp_path)
     assert compare(ref["metrics"], current) == [], (current, ref)
+
+
+FIGURES = {"sctn declared:loihi": {"A": 0.25, "R": 0.125, "ARscore": 0.13, "AUC": 0.26, "P@20": 0.3, "queries": 72,
+                                   "calls": 71, "latency_mean_s": 4.0e-4, "latency_p50_s": 3.9e-4,
+                                   "latency_p90_s": 4.5e-4, "latency_max_s": 6.1e-4}}
+
+
+@pytest.mark.parametrize("figure, delta, flagged", [
+    ("ARscore", 1e-6, True), ("ARscore", -1e-6, True), ("ARscore", 1e-11, False), ("A", -2e-9, True),
+    ("calls", 1, True), ("queries", -1, True), ("latency_p90_s", 1e-9, True), ("latency_max_s", 1e-13, False),
+    ("latency_mean_s", math.nan, True),
+])
+def test_stream_compare_flags_a_figure_moved_beyond_its_tolerance(figure, delta, flagged):
+    changed = json.loads(json.dumps(FIGURES))
+    changed["sctn declared:loihi"][figure] += delta
+    for ref, cur in ((FIGURES, changed), (changed, FIGURES)):  # a change either way
+        problems = compare(ref, cur, STREAM_TOLERANCE)
+        if flagged:
+            assert len(problems) == 1 and problems[0].startswith(f"sctn declared:loihi {figure} "), problems
+        else:
+            assert problems == []
+
+
+@pytest.fixture(scope="module")
+def stream_figures(tmp_path_factory):
+    return run_ci_stream(tmp_path_factory.mktemp("ci-stream"))
+
+
+def test_ci_stream_run_meets_the_committed_reference(stream_figures):
+    ref = json.loads(STREAM_REFERENCE.read_text())
+    # the reference says how it was made, and that is what the code runs
+    assert (ref["trackers"], ref["options"], ref["settings"]) == (list(STREAM_TRACKERS), list(STREAM_OPTIONS),
+                                                                  STREAM_SETTINGS)
+    assert {k: v for k, v in ref["sequence"].items() if k != "made_by"} == STREAM_SEQUENCE
+    rows = [t + p for t in STREAM_TRACKERS for p in ("", " (predictive)")]
+    assert set(ref["figures"]) == {f"{r} {m}" for r in rows for m in ("free", *STREAM_LATENCY)}
+    assert compare(ref["figures"], stream_figures, STREAM_TOLERANCE) == [], stream_figures
+    # the two profiles time SCTN's calls differently: the loihi row is a different run, not a copy
+    assert stream_figures["sctn declared:loihi"]["calls"] > stream_figures["sctn declared:cpu"]["calls"]
+
+
+def test_ci_stream_regression_fails_on_a_changed_reference_figure(stream_figures, tmp_path, monkeypatch, capsys):
+    ref = json.loads(STREAM_REFERENCE.read_text())
+    monkeypatch.setattr(regression, "run_ci_stream", lambda workdir: stream_figures)  # the run above, not a rerun
+    monkeypatch.setattr(regression, "STREAM_REFERENCE", tmp_path / "ci_stream.json")
+    (tmp_path / "ci_stream.json").write_text(json.dumps(ref))
+    assert regression.main(["--stream"]) == 0
+    ref["figures"]["sctn declared:loihi"]["ARscore"] += 1e-6
+    ref["figures"]["siamfc (predictive) declared:cpu"]["calls"] -= 1
+    (tmp_path / "ci_stream.json").write_text(json.dumps(ref))
+    capsys.readouterr()
+    assert regression.main(["--stream"]) == 1
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("REGRESSION: ")]
+    assert len(err) == 2 and "sctn declared:loihi ARscore" in err[0] + err[1]
+    assert any("siamfc (predictive) declared:cpu calls" in e for e in err)
