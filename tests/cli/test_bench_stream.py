@@ -52,6 +52,9 @@ def test_rct_streams_end_to_end(square, tmp_path, capsys):
     (["--query-hz", "0"], "--query-hz 0: outside"),
     (["--latency", "scaled:1,-2"], "--latency scaled:1,-2: scale factor '-2'"),
     (["--query-hz", "2e6"], "--query-hz 2e+06: outside"),
+    (["--query-hz", "nan"], "--query-hz nan: outside"),
+    (["--latency", "declared:"], "--latency declared:: unknown latency model"),
+    (["--tracker", "siamfc", "--latency", "declared:loihi"], "--latency declared:loihi: tracker 'rct' has no latency"),
     (["--video", "sq"], "--video sq: not made by --protocol stream"),
 ])
 def test_bad_stream_options_exit_2_before_any_tracking(square, tmp_path, capsys, flags, message):
