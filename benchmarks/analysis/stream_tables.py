@@ -31,9 +31,18 @@ def _ms(v: float) -> str:
     return f"{v * 1e3:.2f}" if np.isfinite(v) else "nan"
 
 
+def half_text(half: dict, curve: list) -> str:
+    """The half-score factor as the table and the plot's legend give it (half: stream_summary.half_factor's answer,
+    curve: [(factor, ARscore)] in increasing factor): the factor, or how far the factors given reach."""
+    if not half["reached"]:
+        return f"not reached up to {curve[-1][0]:g}"
+    return f"{half['factor']:.3g}" + (" (or below: the smallest factor)" if half.get("at_or_below") else "")
+
+
 def format_stream(summary: dict) -> str:
     """Markdown: per row and latency model the pooled A, R, ARscore, AUC, P@20, the latency-free ARscore and AUC
-    and the drop, and the latency distribution (ms); then the half-score factors and the machine measured on."""
+    and the drop, and the latency distribution (ms); then per row the scale factor at which its ARscore falls to
+    half the latency-free one (scaled latencies), and the machine measured on."""
     p = f"P@{PRECISION_PX}"
     lines = ["| tracker | latency | A | R | ARscore | AUC | " + p + " | free ARscore | ARscore drop | free AUC | "
              "AUC drop | latency mean / p50 / p90 / max (ms) | queries |", "|---" * 13 + "|"]
@@ -55,12 +64,10 @@ def format_stream(summary: dict) -> str:
         for seq in per.get("failed", {}):
             lines.append(f"| {markdown_cell(row)} | failed on {markdown_cell(seq)} | " + " | ".join([""] * 11) + " |")
     if summary.get("half_factor"):
-        lines += ["", "| tracker | scale factor at half the latency-free ARscore |", "|---|---|"]
+        lines += ["", "| tracker | scale factor at half the latency-free ARscore | half ARscore |", "|---|---|---|"]
         for row, h in summary["half_factor"].items():
-            curve = summary["scale_curves"][row]
-            text = (f"{h['factor']:.3g}" + (" (or below: the smallest factor)" if h.get("at_or_below") else "")
-                    if h["reached"] else f"not reached up to {curve[-1][0]:g}")
-            lines.append(f"| {markdown_cell(row)} | {text} |")
+            lines.append(f"| {markdown_cell(row)} | {half_text(h, summary['scale_curves'][row])} | "
+                         f"{h['half_score']:.3f} |")
     s = summary.get("settings", {})
     lines += ["", f"queries at {s.get('query_hz', float('nan')):g} Hz, window '{s.get('window')}', one pass (no "
                   "re-initialisation); free: called at every segment end, answers at once"]
@@ -70,28 +77,44 @@ def format_stream(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_latency_scale(summary: dict, path: str | os.PathLike) -> Path:
-    """The pooled ARscore of each row against the latency scale factor (log axis), its latency-free score dashed."""
+def scale_figure(summary: dict):
+    """The figure of latency_scale.png: per row the pooled ARscore against the latency scale factor (log axis), its
+    latency-free score dashed, and a cross where it falls to half that score (the factor in the legend)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from benchmarks.evaluation.safe_names import plot_text
-    from dvsot.runtime.outputs import replacing
 
     fig, ax = plt.subplots(figsize=(5, 4))
+    halves = summary.get("half_factor", {})
     for row, curve in summary["scale_curves"].items():
         f, s = zip(*curve)
-        line, = ax.plot(f, s, marker="o", label=plot_text(row))
+        h = halves.get(row)
+        label = plot_text(row) + (f" (half at x{half_text(h, curve)})" if h and h["reached"] else
+                                  f" (half {half_text(h, curve)})" if h else "")
+        line, = ax.plot(f, s, marker="o", label=label)
         ax.axhline(summary["rows"][row][FREE][ALL]["ARscore"], color=line.get_color(), ls="--", lw=0.8)
+        if h and h["reached"]:
+            ax.plot([h["factor"]], [h["half_score"]], marker="x", ms=9, mew=2, ls="none", color=line.get_color())
     ax.set_xscale("log")
     ax.set_xlabel("latency scale factor (x measured)")
     ax.set_ylabel("streaming ARscore")
     ax.set_ylim(0, 1.02)
-    ax.set_title("score against latency (dashed: latency-free)")
+    ax.set_title("score against latency (dashed: latency-free;\nx: half the latency-free score)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_latency_scale(summary: dict, path: str | os.PathLike) -> Path:
+    """latency_scale.png (scale_figure) written atomically to path."""
+    import matplotlib.pyplot as plt
+
+    from dvsot.runtime.outputs import replacing
+
+    fig = scale_figure(summary)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with replacing(path) as tmp:

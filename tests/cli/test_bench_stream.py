@@ -32,6 +32,9 @@ def test_rct_streams_end_to_end(square, tmp_path, capsys):
     assert rows["measured"]["all"]["queries"] == 35  # 500 Hz after the init at 10 ms up to 80 ms
     assert set(summary["drop"]["rct"]) == {"measured", "scaled:1", "scaled:4"}
     assert [f for f, _ in summary["scale_curves"]["rct"]] == [1.0, 4.0]
+    # per row, the factor at which it falls to half its latency-free ARscore, in the json and the printed table
+    assert set(summary["half_factor"]) == {"rct", "rct (predictive)"}
+    assert "scale factor at half the latency-free ARscore" in printed
     for name in ("stream.md", "latency_scale.png", "iou_over_time.png", "run.json"):
         assert (out / name).is_file()
     with open(out / "rct" / "stream" / "sq.scaled-4.csv") as f:
