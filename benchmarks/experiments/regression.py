@@ -21,9 +21,10 @@ numpy-made sequence (tests/synthetic.py: a textured square crossing a wall, 160x
 A declared run is deterministic, so its figures (per tracker, predictive row and latency model: A, R, ARscore,
 AUC, P@20, counted queries, calls and the latency distribution) are held to the committed reference
 (benchmarks/experiments/reference/ci_stream.json) to STREAM_TOLERANCE: 1e-9 on a score, 1e-12 s on a latency,
-0 on a count. On one machine a rerun is bit-identical; the tolerance admits only the last-bit differences that
-float arithmetic may show on another CPU (summation order), while a changed window, answer or operation count
-moves a figure far beyond it.
+0 on a count. The run uses one torch thread, so on one platform (the reference records machine, torch version and
+CPU capability) a rerun is bit-identical. On another platform torch's kernels may sum in another order, which can
+flip a spike and move an operation count by a few: there the figures are held to STREAM_TOLERANCE_ELSEWHERE
+(0.03 on a score, 1 ms on a latency, 3 calls), which a changed window, answer or operation cost still exceeds.
 
     python -m benchmarks.experiments.regression --stream                      # run, compare, exit 1 on a change
     python -m benchmarks.experiments.regression --stream --update-reference   # rewrite ci_stream.json
@@ -54,6 +55,23 @@ SCORES = ("A", "R", "ARscore", "AUC", "P@20")
 LATENCIES = ("mean_s", "p50_s", "p90_s", "max_s")
 STREAM_TOLERANCE = {**{m: 1e-9 for m in SCORES}, "queries": 0, "calls": 0,
                     **{f"latency_{k}": 1e-12 for k in LATENCIES}}
+STREAM_TOLERANCE_ELSEWHERE = {**{m: 0.03 for m in SCORES}, "queries": 0, "calls": 3,
+                              **{f"latency_{k}": 1e-3 for k in LATENCIES}}
+
+
+def platform_signature() -> dict:
+    """What decides torch's float sums on a CPU: machine, torch version, the CPU capability torch dispatches to."""
+    import platform
+
+    import torch
+
+    return {"machine": platform.machine(), "torch": torch.__version__,
+            "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+
+
+def stream_tolerance(reference: dict) -> dict:
+    """The exact tolerance on the reference's own platform, the cross-platform one elsewhere."""
+    return STREAM_TOLERANCE if reference.get("platform") == platform_signature() else STREAM_TOLERANCE_ELSEWHERE
 
 
 def run_ci_benchmark(workdir: Path, seed: int = 0) -> dict:
@@ -169,12 +187,19 @@ def run_ci_stream(workdir: Path) -> dict:
 
     from benchmarks.bench.plan import run_benchmark
 
+    import torch
+
     data = stream_sequence(workdir)
-    with warnings.catch_warnings():  # the shipped checkpoints' recipe notes are not the regression's concern
-        warnings.simplefilter("ignore")
-        run = run_benchmark(list(STREAM_TRACKERS), data=[str(data)], out_dir=workdir / "stream", jobs=1,
-                            options=STREAM_OPTIONS, protocol="stream", progress=False, energy=False,
-                            stream=STREAM_SETTINGS)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # one summation order on a platform, whatever its core count
+    try:
+        with warnings.catch_warnings():  # the shipped checkpoints' recipe notes are not the regression's concern
+            warnings.simplefilter("ignore")
+            run = run_benchmark(list(STREAM_TRACKERS), data=[str(data)], out_dir=workdir / "stream", jobs=1,
+                                options=STREAM_OPTIONS, protocol="stream", progress=False, energy=False,
+                                stream=STREAM_SETTINGS)
+    finally:
+        torch.set_num_threads(threads)
     return stream_figures(run.summary)
 
 
@@ -187,10 +212,15 @@ def stream_main(update: bool, workdir: Path) -> int:
             "command": "python -m benchmarks.experiments.regression --stream --update-reference",
             "trackers": list(STREAM_TRACKERS), "options": list(STREAM_OPTIONS), "settings": STREAM_SETTINGS,
             "sequence": {"made_by": "tests/synthetic.py moving_square_file", **STREAM_SEQUENCE},
-            "tolerance": STREAM_TOLERANCE, "figures": current}, indent=2) + "\n")
+            "tolerance": STREAM_TOLERANCE, "platform": platform_signature(), "figures": current}, indent=2) + "\n")
         print(f"reference written: {STREAM_REFERENCE}")
         return 0
-    problems = compare(json.loads(STREAM_REFERENCE.read_text())["figures"], current, STREAM_TOLERANCE)
+    reference = json.loads(STREAM_REFERENCE.read_text())
+    tolerance = stream_tolerance(reference)
+    if tolerance is STREAM_TOLERANCE_ELSEWHERE:
+        print(f"another platform than the reference's ({reference.get('platform')}): cross-platform tolerance",
+              file=sys.stderr)
+    problems = compare(reference["figures"], current, tolerance)
     for p in problems:
         print("REGRESSION: " + p, file=sys.stderr)
     return 1 if problems else 0
