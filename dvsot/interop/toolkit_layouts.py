@@ -12,8 +12,9 @@ no box on the sensor. The events stay in the dataset files (or `dvsot export FIL
   a subset directory (`GOT10k(root, subset=<the directory's name>, return_meta=True)`).
 - lasot: `<seq>/<seq>-1/groundtruth.txt`, `full_occlusion.txt` and `out_of_view.txt` (0/1 comma-separated on one
   line) and `nlp.txt` (the target's name), LaSOT's `<category>/<category>-<index>/` tree.
-- vot: `list.txt`; `<seq>/sequence` (key=value: name, fps, format, length, width, height), `groundtruth.txt`, one `<tag>.tag` per tag (`1` or `0` per line)
-  and `visibility.value`, `truncation.value` (one number per line), as the VOT toolkit reads a sequence.
+- vot: `list.txt`; `<seq>/sequence` (key=value: name, fps, format, length, width, height), `groundtruth.txt`,
+  one `<tag>.tag` per tag (`1` or `0` per line) and `visibility.value`, `truncation.value` (one number per line),
+  as the VOT toolkit's read_sequence reads a sequence directory without its images.
 
 The directory holds one export's files: a manifest (`.dvsot_export.json`, hidden: LaSOT's reader lists every
 visible entry as a sequence) names them, and an export again replaces them all at once
