@@ -138,8 +138,9 @@ def test_formats_without_labels_say_so_in_one_line(tmp_path, capsys, suffix):
 def got10k_sequences(subset_dir: Path) -> dict[str, tuple[np.ndarray, dict]]:
     """got10k's own GOT10k(root, subset, return_meta=True): list.txt, groundtruth.txt, meta_info.ini and the labels.
 
-    GOT10k asserts one frame image per groundtruth line; the export keeps the events in the dataset files, so empty
-    stand-ins (`00000001.jpg`, ...) are put beside the labels first."""
+    GOT10k takes subset_dir's name for its subset (train or val: its test subset reads no labels) and asserts one
+    frame image per groundtruth line; the export keeps the events in the dataset files, so empty stand-ins
+    (`00000001.jpg`, ...) are put beside the labels first."""
     from got10k.datasets import GOT10k
 
     for name in (subset_dir / "list.txt").read_text().split():
@@ -281,7 +282,7 @@ def test_the_hide_and_leave_example_is_tagged_as_it_plays(tmp_path):
     assert not tags["occlusion"][gone].any()  # off the sensor is out of view, not occluded
     leaving = (t > 1.85) & (t < 2.25)
     assert tags["cut_by_image"][leaving].any() and not tags["cut_by_image"][hidden | gone].any()
-    export_layout(out, tmp_path / "g", "got10k")
-    _, meta = got10k_sequences(tmp_path / "g")["hide_and_leave"]
+    export_layout(out, tmp_path / "g" / "val", "got10k")
+    _, meta = got10k_sequences(tmp_path / "g" / "val")["hide_and_leave"]
     assert (meta["cover"][hidden] == 0).all() and (meta["cover"][t < 0.3] == 8).all()  # the wall nears by 0.4 s
     assert (meta["cover"][leaving] < 8).any()
