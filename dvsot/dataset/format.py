@@ -31,7 +31,8 @@ Layout (DSEC-compatible events, see docs/ARCHITECTURE.md):
     /objects/visibility    f4  (N, K) px_visible / px_amodal (0..1, 0 where no amodal pixel; NaN: no geometry)
     /objects/truncation    f4  (N, K) share of the object's whole silhouette off the sensor (0..1; NaN: no geometry)
     /masks/objects         u1  (N, H, W) the object index pass of every sample (ids of /objects/id), one gzip chunk
-                               per sample (`dvsot generate` writes them by default)
+                               per sample (`dvsot generate` writes them by default); its attribute `ids` (u1)
+                               lists the ids the images hold, checked against /objects/id on open
     /segments/annotation   i8  (M,) recordings only: the /boxes row matched to each segment, -1 = none
     /ms_to_idx                 a hard link to /events/ms_to_idx (where DSEC's and tonic's readers look)
     /objects/id            u1  (K,) the ids /events/object uses (present exactly when it is)

@@ -274,8 +274,11 @@ class Dataset:
         self._objects_track = ObjectTrack(ids, self._load("boxes/t"), *(rows[name] for name in OBJECT_TRUTH))
 
     def _check_masks(self, f: h5py.File, n_boxes: int) -> None:
-        """Check /masks/objects' shape against the samples and the sensor; its ids are checked as frames are read."""
+        """Check /masks/objects' shape against the samples and the sensor, and the ids its attribute 'ids' lists
+        against the object table; the images' ids are checked against both as they are read (files written before
+        the attribute: against the table only)."""
         self.has_masks = "masks/objects" in f
+        self._mask_ids = None
         if not self.has_masks:
             return
         ds = f["masks/objects"]
@@ -286,6 +289,18 @@ class Dataset:
         if ds.shape[1:] != (self.height, self.width):
             raise Damaged(f"/masks/objects holds {ds.shape[2]}x{ds.shape[1]} images, the sensor is "
                           f"{self.width}x{self.height}")
+        if "ids" not in ds.attrs:
+            return
+        listed = np.asarray(ds.attrs["ids"])
+        if listed.ndim != 1 or listed.dtype.kind not in "ui" or len(listed) > 256:
+            raise Damaged(f"/masks/objects attribute 'ids' is {listed.dtype} of shape {listed.shape}, expected "
+                          "the object ids its images hold (u1 (n,))")
+        stray = listed[(listed < 0) | (listed > 255) | ~self._known_ids[np.clip(listed, 0, 255).astype(np.intp)]]
+        if len(stray):
+            raise Damaged(f"/masks/objects holds id {int(stray[0])} (its attribute 'ids'), which /objects/id does "
+                          "not list")
+        self._mask_ids = np.zeros(256, bool)
+        self._mask_ids[listed.astype(np.intp)] = True
 
     def object_track(self) -> ObjectTrack | None:
         """Every object's boxes, pixel counts, visibility and truncation at every sample (/objects), or None."""
@@ -306,11 +321,14 @@ class Dataset:
         except (OSError, ValueError, RuntimeError) as exc:
             raise self._damaged(f"cannot read /masks/objects samples {i0}..{i1 - 1}, its stored data is corrupt "
                                 f"({exception_line(exc, kind=False)})") from None
-        known = self._known_ids[m]
+        # the attribute's ids lie in the table (checked on open), so one lookup checks both
+        known = (self._known_ids if self._mask_ids is None else self._mask_ids)[m]
         if not known.all():
             j = np.argwhere(~known)[0]
-            raise self._damaged(f"/masks/objects holds id {int(m[tuple(j)])} at sample {i0 + int(j[0])}, which "
-                                f"/objects/id does not list")
+            v = int(m[tuple(j)])
+            raise self._damaged(f"/masks/objects holds id {v} at sample {i0 + int(j[0])}, which "
+                                + ("/objects/id does not list" if not self._known_ids[v] else
+                                   "its attribute 'ids' does not list"))
         return m
 
     def verify_masks(self) -> None:

@@ -130,6 +130,7 @@ class DatasetWriter:
         self._truncation: list[np.ndarray | None] = []
         self._object_rows: dict[str, list[np.ndarray]] = {name: [] for name in OBJECT_TRUTH}
         self._masks = 0  # object index images appended (/masks/objects rows)
+        self._mask_ids = np.zeros(256, bool)  # the ids those images hold: attribute 'ids' of /masks/objects
         self._io: OrderedWorker | None = None  # the writer thread, started by the first flush
         # per gzip column, the digest of every chunk handed to HDF5, in order: the read-back compares them
         self._digests: dict[str, list[bytes]] = {}
@@ -369,6 +370,7 @@ class DatasetWriter:
         img = img.astype(np.uint8, copy=False)
         if not self._known_ids[img].all():
             raise ValueError(f"mask id {int(img[~self._known_ids[img]][0])} is not in the object table")
+        self._mask_ids |= np.bincount(img.ravel(), minlength=256).astype(bool)
         self._on_writer(self._write_mask, self._masks, img.copy())
         self._masks += 1
 
@@ -485,6 +487,8 @@ class DatasetWriter:
             if self._object_rows["visibility"]:
                 for name in OBJECT_TRUTH:
                     o.create_dataset(name, data=np.concatenate(self._object_rows[name]), **ck, **self._filter)
+        if self._masks:  # the reader checks these ids against the table on open, without reading the images
+            f["masks/objects"].attrs["ids"] = np.flatnonzero(self._mask_ids).astype(np.uint8)
 
     def _write_attributes(self, duration_us: int) -> None:
         """Write the root attributes and their digest."""

@@ -12,8 +12,9 @@ no box on the sensor. The events stay in the dataset files (or `dvsot export FIL
   a subset directory (`GOT10k(root, subset=<the directory's name>, return_meta=True)`).
 - lasot: `<seq>/<seq>-1/groundtruth.txt`, `full_occlusion.txt` and `out_of_view.txt` (0/1 comma-separated on one
   line) and `nlp.txt` (the target's name), LaSOT's `<category>/<category>-<index>/` tree.
-- vot: `list.txt`; `<seq>/sequence` (key=value), `groundtruth.txt`, one `<tag>.tag` per tag (`1` or `0` per line)
-  and `visibility.value`, `truncation.value` (one number per line), as the VOT toolkit reads a sequence.
+- vot: `list.txt`; `<seq>/sequence` (key=value: name, fps, format, length, width, height), `groundtruth.txt`,
+  one `<tag>.tag` per tag (`1` or `0` per line) and `visibility.value`, `truncation.value` (one number per line),
+  as the VOT toolkit's read_sequence reads a sequence directory without its images.
 
 The directory holds one export's files: a manifest (`.dvsot_export.json`, hidden: LaSOT's reader lists every
 visible entry as a sequence) names them, and an export again replaces them all at once
@@ -92,7 +93,9 @@ def sequence_texts(ds: Dataset, layout: str) -> tuple[dict[str, str], list[str]]
 
         wanted.update({f"{name}.tag": tags.get(name) for name in TAGS})
         wanted["visibility.value"], wanted["truncation.value"] = vis, trunc
-        files["sequence"] = f"name={file_stem(ds.name)}\nfps={fps}\nformat=default\n"
+        # length, width and height: the toolkit takes them from the frames' images where the file does not say
+        files["sequence"] = (f"name={file_stem(ds.name)}\nfps={fps}\nformat=default\nlength={len(box)}\n"
+                             f"width={ds.width}\nheight={ds.height}\n")
     else:
         raise ValueError(f"layout {layout!r}: expected one of {', '.join(LAYOUTS)}")
     left_out = [name for name, values in wanted.items() if values is None]

@@ -152,6 +152,89 @@ def test_damaged_truth_is_one_line_naming_file_and_dataset_exit_2(pristine, tmp_
     assert main(["info", str(path)]) == 2
 
 
+def _set_attr(name, key, value):
+    def damage(f):
+        f[name].attrs[key] = value
+    return damage
+
+
+def _write_rows(name, rows, value):
+    def damage(f):  # in place: the dataset keeps its attributes
+        f[name][rows] = np.full_like(f[name][rows], value)
+    return damage
+
+
+# refused on open: a command that only opens the files (export --layout reads no event and no mask) exits 2
+OPEN_DAMAGE = [
+    ("masks/objects", _edit("masks/objects", lambda m: m[:-1]), "has 8 rows, /boxes/t has 9"),
+    ("segments/absent", _edit("segments/absent", lambda v: v[:-1]), "has 3 rows, /segments/xywh has 4"),
+    ("segments/visibility", _edit("segments/visibility", lambda v: np.append(v, v[-1])), "has 5 rows"),
+    ("segments/truncation", _edit("segments/truncation", lambda v: v[:-1]), "has 3 rows"),
+    ("boxes/visibility", _edit("boxes/visibility", lambda v: v[:-1]), "has 8 rows, /boxes/t has 9"),
+    ("masks/objects", _set_attr("masks/objects", "ids", np.array([0, 1, 2, 9], np.uint8)), "holds id 9"),
+    ("masks/objects", _set_attr("masks/objects", "ids", np.array([[0, 1]], np.uint8)), "attribute 'ids'"),
+    ("segments/visibility", _write_rows("segments/visibility", 0, 1.5), "outside 0..1"),
+    ("boxes/visibility", _write_rows("boxes/visibility", 0, -0.25), "outside 0..1"),
+    ("objects/visibility", _write_rows("objects/visibility", 0, 2.0), "outside 0..1"),
+    ("segments/absent", _write_rows("segments/absent", 0, 2), "expected 0 or 1"),
+]
+
+
+@pytest.mark.parametrize("field,damage,words", OPEN_DAMAGE, ids=[f"{d[0]}:{d[2]}" for d in OPEN_DAMAGE])
+def test_bad_tags_masks_and_ids_are_refused_on_open(pristine, tmp_path, capsys, field, damage, words):
+    import shutil
+
+    import h5py
+
+    from dvsot.cli import main
+    from dvsot.core.errors import UserError
+
+    path = tmp_path / "bad.h5"
+    shutil.copy(pristine, path)
+    with h5py.File(path, "a") as f:
+        damage(f)
+    with pytest.raises(UserError, match=words):
+        Dataset(path)  # opening alone, no read of events or masks
+    capsys.readouterr()
+    assert main(["export", str(path), "--layout", "vot", "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and f"/{field}" in err[0] and words in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_mask_ids_are_listed_at_write_and_checked_on_read_old_files_too(pristine, tmp_path, capsys):
+    import shutil
+
+    import h5py
+
+    from dvsot.cli import main
+
+    with h5py.File(pristine, "r") as f:
+        assert f["masks/objects"].attrs["ids"].tolist() == [0, 1, 2]  # background, target, wall: no noise id
+    # an id of the table that the attribute does not list: the attribute is wrong, found when the images are read
+    listed = tmp_path / "listed.h5"
+    shutil.copy(pristine, listed)
+    with h5py.File(listed, "a") as f:
+        _write_rows("masks/objects", 4, 255)(f)
+    Dataset(listed).close()
+    assert main(["info", str(listed)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "/masks/objects holds id 255 at sample 4" in err[0] and "'ids' does not" in err[0], err
+    # a file written before the attribute opens, and an id outside the table is still refused on read
+    old = tmp_path / "old.h5"
+    shutil.copy(pristine, old)
+    with h5py.File(old, "a") as f:
+        del f["masks/objects"].attrs["ids"]
+    with Dataset(old) as ds:
+        np.testing.assert_array_equal(ds.masks(0, SAMPLES), np.stack([fr.objects for fr in scene_frames()[0]]))
+    with h5py.File(old, "a") as f:
+        _write_rows("masks/objects", 4, 9)(f)
+    Dataset(old).close()
+    assert main(["info", str(old)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds id 9 at sample 4, which /objects/id does not list" in err[0], err
+
+
 def test_segment_dataset_labels_give_the_rendered_silhouette_and_shares(tmp_path):
     from dvsot.dataset.tonic_dataset import TonicDataset
     from dvsot.dataset.torchdata import SegmentDataset, collate_segments

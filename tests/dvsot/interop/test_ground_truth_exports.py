@@ -1,9 +1,10 @@
 """Exports carry the ground truth: `OUT.gt.csv` beside the events, and the GOT-10k, LaSOT and VOT layouts' tag files,
-read back here the way each toolkit reads them (got10k's GOT10k and LaSOT datasets, the VOT toolkit's sequence)."""
+read back by got10k's own GOT10k and LaSOT readers, and the way the VOT toolkit reads a sequence."""
 
 from __future__ import annotations
 
 import csv
+import re
 import warnings
 from pathlib import Path
 
@@ -135,39 +136,53 @@ def test_formats_without_labels_say_so_in_one_line(tmp_path, capsys, suffix):
 # --- the toolkits' readers, as they parse these files ---------------------------------------------------------
 
 def got10k_sequences(subset_dir: Path) -> dict[str, tuple[np.ndarray, dict]]:
-    """got10k.datasets.GOT10k(root, subset, return_meta=True): list.txt, groundtruth.txt, meta_info.ini, labels."""
-    names = (subset_dir / "list.txt").read_text().strip().split("\n")
+    """got10k's own GOT10k(root, subset, return_meta=True): list.txt, groundtruth.txt, meta_info.ini and the labels.
+
+    GOT10k takes subset_dir's name for its subset (train or val: its test subset reads no labels) and asserts one
+    frame image per groundtruth line; the export keeps the events in the dataset files, so empty stand-ins
+    (`00000001.jpg`, ...) are put beside the labels first."""
+    from got10k.datasets import GOT10k
+
+    for name in (subset_dir / "list.txt").read_text().split():
+        lines = len((subset_dir / name / "groundtruth.txt").read_text().splitlines())
+        for k in range(lines):
+            (subset_dir / name / f"{k + 1:08d}.jpg").touch()
+    data = GOT10k(str(subset_dir.parent), subset=subset_dir.name, return_meta=True)
     out = {}
-    for name in names:
-        seq = subset_dir / name
-        anno = np.loadtxt(seq / "groundtruth.txt", delimiter=",")
-        meta = (seq / "meta_info.ini").read_text().strip().split("\n")[1:]
-        meta = dict(line.split(": ") for line in meta)
-        for att in ("cover", "absence", "cut_by_image"):
-            meta[att] = np.loadtxt(seq / f"{att}.label")
+    for name in data.seq_names:
+        frames, anno, meta = data[name]
+        assert len(frames) == len(anno)
         out[name] = anno, meta
     return out
 
 
 def lasot_sequence(seq: Path) -> tuple[np.ndarray, dict]:
-    """got10k.datasets.LaSOT's reading of <cat>/<cat>-<n>/ (np.loadtxt), and pytracking's (csv, first row)."""
-    meta = {att: np.loadtxt(seq / f"{att}.txt", delimiter=",") for att in ("full_occlusion", "out_of_view")}
+    """got10k's LaSOT reading of <cat>/<cat>-<n>/ (its _fetch_meta and np.loadtxt), and pytracking's (csv, first
+    row). got10k's LaSOT class lists the sequences of its own split file, so its per-sequence reader is called."""
+    from got10k.datasets import LaSOT
+
+    meta = LaSOT._fetch_meta(None, str(seq / "img"))  # it takes the sequence's img/ directory and reads its parent
     for att in ("full_occlusion", "out_of_view"):
         with open(seq / f"{att}.txt", newline="") as fh:
             assert [int(v) for v in list(csv.reader(fh))[0]] == meta[att].astype(int).tolist()
-    meta["nlp"] = (seq / "nlp.txt").read_text().strip()
     return np.loadtxt(seq / "groundtruth.txt", delimiter=","), meta
 
 
 def vot_sequence(seq: Path, length: int) -> tuple[list, dict, dict, dict]:
-    """The VOT toolkit's VOTSequence: groundtruth regions, *.tag / *.label (line == "1"), *.value, `sequence`."""
+    """The VOT toolkit's vot.dataset.common.read_sequence, line for line: `sequence` (key=value; without `length`
+    the toolkit looks for frame images), groundtruth regions, *.tag / *.label (line == "1"), *.value (floats).
+
+    The toolkit itself is not a test dependency: vot-toolkit requires opencv-python, whose cv2 replaces the
+    opencv-contrib build dvsot's KCF and CSRT baselines need."""
+    props = dict(re.match(r"^([a-zA-Z0-9_\-.]+) *= *(.*)$", line.strip()).groups()
+                 for line in (seq / "sequence").read_text().splitlines() if "=" in line)
+    assert int(props["length"]) == length and int(props["width"]) > 0 and int(props["height"]) > 0
     lines = (seq / "groundtruth.txt").read_text().splitlines()
     regions = [[float(t) for t in line.strip().split(",")] for line in lines]
     tags = {p.stem: [line.strip() == "1" for line in p.read_text().splitlines(keepends=True)]
             for p in sorted(seq.glob("*.tag")) + sorted(seq.glob("*.label"))}
     values = {p.stem: [float(line.strip()) for line in p.read_text().splitlines(keepends=True)]
               for p in sorted(seq.glob("*.value"))}
-    props = dict(line.split("=", 1) for line in (seq / "sequence").read_text().splitlines() if "=" in line)
     assert len(regions) == length and all(len(v) == length for v in (*tags.values(), *values.values()))
     return regions, tags, values, props
 
@@ -207,6 +222,7 @@ def test_layouts_read_back_as_the_toolkits_read_them(tmp_path):
     np.testing.assert_array_equal(np.array(values["visibility"], np.float32), vis)
     np.testing.assert_array_equal(np.array(values["truncation"], np.float32), trunc)
     assert props["fps"] == "100" and props["name"] == "walls"
+    assert (props["length"], props["width"], props["height"]) == ("8", str(W), str(H))
 
 
 def test_a_layout_of_a_file_without_visibility_leaves_its_tags_out_and_says_so(tmp_path, capsys):
@@ -266,7 +282,7 @@ def test_the_hide_and_leave_example_is_tagged_as_it_plays(tmp_path):
     assert not tags["occlusion"][gone].any()  # off the sensor is out of view, not occluded
     leaving = (t > 1.85) & (t < 2.25)
     assert tags["cut_by_image"][leaving].any() and not tags["cut_by_image"][hidden | gone].any()
-    export_layout(out, tmp_path / "g", "got10k")
-    _, meta = got10k_sequences(tmp_path / "g")["hide_and_leave"]
+    export_layout(out, tmp_path / "g" / "val", "got10k")
+    _, meta = got10k_sequences(tmp_path / "g" / "val")["hide_and_leave"]
     assert (meta["cover"][hidden] == 0).all() and (meta["cover"][t < 0.3] == 8).all()  # the wall nears by 0.4 s
     assert (meta["cover"][leaving] < 8).any()
