@@ -1,10 +1,12 @@
-"""Checkpoints and narrowing of the paper's ANN trackers trained here (GOTURN, SiamRPN, SiamMask).
+"""Checkpoints and narrowing of the paper's ANN trackers trained here (GOTURN, SiamRPN, SiamMask, Ocean, AutoMatch).
 
-No checkpoint of these ships: without one the tracker says so in one line and how to train one. A checkpoint is
-read by sctn.checkpoint (format "<kind>-checkpoint": another model's checkpoint is refused naming the model it
-holds; missing, damaged or non-finite weights and a config the network cannot be built from are refused naming
-the file). The narrowing of each network is measured against the paper-size network of
-benchmarks.trackers.reference_nets: parameters and multiply-accumulates per tracked frame.
+A shipped checkpoint of one of these is seed 0 trained to its validation plateau: `<kind>_dvsot21.pt`, with the
+`.json` saying how it was made, under CHECKPOINT_DIR (default_path); a tracker given no --checkpoint uses it. Where
+none is there, the tracker says so in one line and how to train one. A checkpoint is read by sctn.checkpoint (format
+"<kind>-checkpoint": another model's checkpoint is refused naming the model it holds; missing, damaged or
+non-finite weights and a config the network cannot be built from are refused naming the file). The narrowing of
+each network is measured against the paper-size network of benchmarks.trackers.reference_nets: parameters and
+multiply-accumulates per tracked frame.
 """
 
 from __future__ import annotations
@@ -21,19 +23,19 @@ CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 
 
 def default_path(kind: str) -> Path:
-    """Where a shipped checkpoint of `kind` would be (none ships)."""
+    """The shipped checkpoint of `kind` (seed 0 at its validation plateau, its .json beside it), if it is there."""
     return CHECKPOINT_DIR / f"{kind}_dvsot21.pt"
 
 
 def load_trained(path: str | os.PathLike | None, kind: str, label: str,
-                 build: Callable[[dict], torch.nn.Module]) -> tuple[torch.nn.Module, dict]:
+                 build: Callable[[dict], torch.nn.Module], article: str = "a") -> tuple[torch.nn.Module, dict]:
     """The network and metadata of a `kind` checkpoint; UserError in one line if there is none or it is unusable."""
     from sctn.checkpoint import load_model
 
     if path is None and not default_path(kind).is_file():
         raise UserError(f"{kind}: no shipped checkpoint exists (no such checkpoint {default_path(kind)}); train one "
                         f"with `dvsot train --model {kind} -o {kind}.pt` and give it with --checkpoint {kind}.pt")
-    return load_model(path, default_path(kind), kind, label, build)
+    return load_model(path, default_path(kind), kind, label, build, article=article)
 
 
 def narrowing(ours: torch.nn.Module, reference: torch.nn.Module, in_channels: int = 1) -> dict:

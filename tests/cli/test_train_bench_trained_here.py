@@ -1,5 +1,6 @@
 """`dvsot train --model siamrpn` writes a checkpoint with its JSON, `dvsot bench --tracker siamrpn --checkpoint` scores
-it on a synthetic file; without a checkpoint the trackers trained here say in one line that none ships (exit 2)."""
+it on a synthetic file; with neither a checkpoint given nor one shipped the trackers trained here say so in one line
+(exit 2)."""
 
 from __future__ import annotations
 
@@ -47,8 +48,12 @@ def test_train_siamrpn_then_bench_it(data, tmp_path, capsys):
     assert (bench / "siamrpn").is_dir()
 
 
-@pytest.mark.parametrize("name", ["goturn", "siamrpn", "siammask"])
-def test_bench_without_a_checkpoint_says_none_ships_and_scores_nothing(data, tmp_path, capsys, name):
+@pytest.mark.parametrize("name", ["goturn", "siamrpn", "siammask", "ocean", "automatch"])
+def test_bench_without_a_checkpoint_says_none_ships_and_scores_nothing(data, tmp_path, capsys, monkeypatch, name):
+    from benchmarks.trackers import trained_here
+
+    (tmp_path / "shipped").mkdir()  # no checkpoint there, whatever ships with the package
+    monkeypatch.setattr(trained_here, "CHECKPOINT_DIR", tmp_path / "shipped")
     _, test = data
     bench = tmp_path / "bench"
     assert main(["bench", "--tracker", name, "--data", str(test), "--out", str(bench), "--jobs", "1", "--quiet"]) == 2

@@ -27,7 +27,6 @@ from benchmarks.trackers.automatch.operators import OPERATORS, Matching
 from benchmarks.trackers.ocean.model import AnchorFreeHead, TrunkConfig, trunk
 
 KIND = "automatch"
-CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 
 
 class AutoMatchConfig(TrunkConfig):
@@ -83,13 +82,16 @@ class AutoMatch(nn.Module):
 
 
 def default_automatch_path() -> Path:
-    """Where a shipped AutoMatch checkpoint would lie (none is shipped: `dvsot train --model automatch` makes one)."""
-    return CHECKPOINT_DIR / "automatch_dvsot21.pt"
+    """The shipped AutoMatch checkpoint (benchmarks.trackers.trained_here.default_path), if it is there."""
+    from benchmarks.trackers.trained_here import default_path
+
+    return default_path(KIND)
 
 
 def load_automatch(path: str | os.PathLike | None = None) -> tuple[AutoMatch, dict]:
-    """The network and metadata of an automatch checkpoint; UserError naming the file if missing or unusable."""
-    from sctn.checkpoint import load_model
+    """The network and metadata of an automatch checkpoint (the shipped one if path is None); UserError in one line if
+    there is none or it is unusable."""
+    from benchmarks.trackers.trained_here import load_trained
 
-    return load_model(path, default_automatch_path(), KIND, "automatch",
-                      lambda blob: AutoMatch(AutoMatchConfig(**blob["config"])), article="an")
+    return load_trained(path, KIND, "automatch", lambda blob: AutoMatch(AutoMatchConfig(**blob["config"])),
+                        article="an")

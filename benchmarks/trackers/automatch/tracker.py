@@ -13,7 +13,7 @@ from benchmarks.trackers.ocean.tracker import AnchorFreeTracker
 
 @register("automatch")
 class AutoMatchTracker(AnchorFreeTracker):
-    """AutoMatch on ATSLTD frames with weights trained here (`dvsot train --model automatch`; none is shipped)."""
+    """AutoMatch on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "automatch"
 

@@ -32,7 +32,7 @@ class GOTURNOptions(Strict):
 
 @register("goturn")
 class GOTURNTracker(Tracker):
-    """GOTURN on ATSLTD frames with weights trained here (--checkpoint; none ships)."""
+    """GOTURN on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "goturn"
 

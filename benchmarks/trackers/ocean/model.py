@@ -33,7 +33,6 @@ from torch.nn import functional as F
 from benchmarks.trackers.ocean.boxes import decode, locations
 
 KIND = "ocean"
-CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 TOTAL_STRIDE = 8
 DILATIONS = ((1, 1), (1, 2), (2, 1))
 
@@ -193,13 +192,15 @@ class Ocean(nn.Module):
 
 
 def default_ocean_path() -> Path:
-    """Where a shipped Ocean checkpoint would lie (none is shipped: `dvsot train --model ocean` makes one)."""
-    return CHECKPOINT_DIR / "ocean_dvsot21.pt"
+    """The shipped Ocean checkpoint (benchmarks.trackers.trained_here.default_path), if it is there."""
+    from benchmarks.trackers.trained_here import default_path
+
+    return default_path(KIND)
 
 
 def load_ocean(path: str | os.PathLike | None = None) -> tuple[Ocean, dict]:
-    """The network and metadata of an ocean checkpoint; UserError naming the file if missing or unusable."""
-    from sctn.checkpoint import load_model
+    """The network and metadata of an ocean checkpoint (the shipped one if path is None); UserError in one line if
+    there is none or it is unusable."""
+    from benchmarks.trackers.trained_here import load_trained
 
-    return load_model(path, default_ocean_path(), KIND, "ocean", lambda blob: Ocean(OceanConfig(**blob["config"])),
-                      article="an")
+    return load_trained(path, KIND, "ocean", lambda blob: Ocean(OceanConfig(**blob["config"])), article="an")

@@ -167,7 +167,7 @@ class AnchorFreeTracker(Tracker):
 
 @register("ocean")
 class OceanTracker(AnchorFreeTracker):
-    """Ocean on ATSLTD frames with weights trained here (`dvsot train --model ocean`; none is shipped)."""
+    """Ocean on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "ocean"
 

@@ -38,7 +38,7 @@ class SiamMaskOptions(Strict):
 
 @register("siammask")
 class SiamMaskTracker(RPNTracker):
-    """SiamMask on ATSLTD frames with weights trained here (--checkpoint; none ships)."""
+    """SiamMask on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "siammask"
     kind = "siammask"

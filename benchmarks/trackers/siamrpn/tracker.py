@@ -196,7 +196,7 @@ class RPNTracker(Tracker):
 
 @register("siamrpn")
 class SiamRPNTracker(RPNTracker):
-    """SiamRPN on ATSLTD frames with weights trained here (--checkpoint; none ships)."""
+    """SiamRPN on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "siamrpn"
 

@@ -225,10 +225,14 @@ def test_a_frame_the_network_cannot_take_is_refused(tmp_path):
         tracker.init(ds.segment(0), ds.segment(0).box, 0, 48)
 
 
-def test_train_and_bench_commands(data, tmp_path, capsys):
+def test_train_and_bench_commands(data, tmp_path, capsys, monkeypatch):
     import json
 
+    from benchmarks.trackers import trained_here
     from dvsot.cli import main
+
+    (tmp_path / "shipped").mkdir()  # no checkpoint there, whatever ships with the package
+    monkeypatch.setattr(trained_here, "CHECKPOINT_DIR", tmp_path / "shipped")
 
     out = tmp_path / "ocean.pt"
     assert main(["train", "--model", "ocean", "--data", str(data), "-o", str(out), "--epochs", "1",
@@ -245,7 +249,8 @@ def test_train_and_bench_commands(data, tmp_path, capsys):
     assert main(["bench", "--tracker", "automatch", "--data", str(test), "--out", str(tmp_path / "c"),
                  "--no-energy", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "train one with `dvsot train --model automatch`" in err and not (tmp_path / "c").exists()
+    assert "\n" not in err and "automatch: no shipped checkpoint exists" in err and \
+        "train one with `dvsot train --model automatch" in err and not (tmp_path / "c").exists()
 
 
 def test_automatch_paper_size_count():

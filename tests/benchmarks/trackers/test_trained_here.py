@@ -297,12 +297,29 @@ def test_a_network_whose_crops_give_no_output_and_a_frame_too_small_are_refused(
         tracker.init(_segment(), np.array([1.0, 1.0, 3.0, 3.0]), 6, 48)
 
 
-@pytest.mark.parametrize("name", ["goturn", "siamrpn", "siammask"])
-def test_without_a_checkpoint_each_says_none_ships_and_how_to_train_one(name):
-    from benchmarks.trackers import get_tracker
+@pytest.mark.parametrize("name", ["goturn", "siamrpn", "siammask", "ocean", "automatch"])
+def test_without_a_checkpoint_each_says_none_ships_and_how_to_train_one(name, tmp_path, monkeypatch):
+    from benchmarks.trackers import get_tracker, trained_here
 
+    monkeypatch.setattr(trained_here, "CHECKPOINT_DIR", tmp_path)  # empty, whatever ships with the package
     with pytest.raises(UserError) as err:
         get_tracker(name)
     text = str(err.value)
     assert "\n" not in text and text.startswith(f"{name}: no shipped checkpoint exists") and \
         f"dvsot train --model {name}" in text
+
+
+@pytest.mark.parametrize("name", ["goturn", "siamrpn", "siammask", "ocean", "automatch"])
+def test_a_checkpoint_at_the_shipped_path_is_used_without_checkpoint(name, tmp_path, monkeypatch):
+    from benchmarks.perf.bench_trained_here import TRACKERS
+    from benchmarks.trackers import get_tracker, trained_here
+    from benchmarks.training.registry import resolve
+    from sctn.checkpoint import save_checkpoint
+
+    monkeypatch.setattr(trained_here, "CHECKPOINT_DIR", tmp_path)
+    torch.manual_seed(0)
+    net = resolve(TRACKERS[name])()
+    save_checkpoint(trained_here.default_path(name), net, {}, kind=name)
+    assert trained_here.default_path(name) == tmp_path / f"{name}_dvsot21.pt"
+    loaded = get_tracker(name).model
+    assert all(torch.equal(a, b) for a, b in zip(net.state_dict().values(), loaded.state_dict().values()))
