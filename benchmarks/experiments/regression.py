@@ -185,9 +185,9 @@ def run_ci_stream(workdir: Path) -> dict:
     """The declared-latency streaming benchmark of the shipped trackers on the numpy-made sequence; its figures."""
     import warnings
 
-    from benchmarks.bench.plan import run_benchmark
-
     import torch
+
+    from benchmarks.bench.plan import run_benchmark
 
     data = stream_sequence(workdir)
     threads = torch.get_num_threads()
