@@ -35,6 +35,7 @@ class GOTURNTracker(Tracker):
     """GOTURN on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "goturn"
+    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
 
     def __init__(self, **options) -> None:
         from benchmarks.trackers.goturn.model import load_goturn

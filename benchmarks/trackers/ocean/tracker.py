@@ -58,6 +58,7 @@ class AnchorFreeTracker(Tracker):
     """Siamese anchor-free tracking on ATSLTD frames; subclasses set `name` and `load(path) -> (model, meta)`."""
 
     name = "anchor_free"
+    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
 
     @staticmethod
     def load(path: str | None) -> tuple[torch.nn.Module, dict]:

@@ -66,6 +66,7 @@ class RPNTracker(Tracker):
 
     kind = "siamrpn"
     options_type: type = SiamRPNOptions
+    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
 
     def __init__(self, **options) -> None:
         opts = self.options_type(**options)

@@ -186,3 +186,13 @@ def test_a_recording_is_queried_at_its_annotations_only(tmp_path):
         annotations = ds.boxes().t
     assert set(run.query_us) <= set(annotations) and len(run.query_us) >= 3
     assert np.isfinite(run.iou).all()
+
+
+@pytest.mark.parametrize("name", ["sctn", "sctn_ann", "siamfc", "goturn", "siamrpn", "siammask", "ocean", "automatch"])
+def test_every_counting_tracker_has_a_declared_latency(name):
+    """Each tracker that counts its operations (energy_per_segment) is timed by both hardware profiles."""
+    from benchmarks.trackers import tracker_class
+
+    cls = tracker_class(name)
+    check_declared(parse_latency("declared:cpu") + parse_latency("declared:loihi"), {name: cls})
+    assert {"mac_ops", "activations"} <= set(cls.operations) or "ac_ops" in cls.operations
