@@ -7,12 +7,14 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test lint install clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml requirements-vot.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	# torch is pinned to its CPU build: an unpinned torch pulls a CUDA build of several GB.
 	$(BIN)/pip install -q "torch==2.13.0" "numpy<2"
 	$(BIN)/pip install -q -e ".[test]"
+	# --no-deps: see requirements-vot.txt (its dependencies would replace cv2's contrib build)
+	$(BIN)/pip install -q --no-deps -r requirements-vot.txt
 	touch $(STAMP)
 
 install: $(STAMP)

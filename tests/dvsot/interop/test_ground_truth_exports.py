@@ -1,12 +1,12 @@
 """Exports carry the ground truth: `OUT.gt.csv` beside the events, and the GOT-10k, LaSOT and VOT layouts' tag files,
-read back by got10k's own GOT10k and LaSOT readers, and the way the VOT toolkit reads a sequence."""
+read back by got10k's own GOT10k and LaSOT readers and by the VOT toolkit's own sequence reader."""
 
 from __future__ import annotations
 
 import csv
-import re
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -168,23 +168,34 @@ def lasot_sequence(seq: Path) -> tuple[np.ndarray, dict]:
     return np.loadtxt(seq / "groundtruth.txt", delimiter=","), meta
 
 
-def vot_sequence(seq: Path, length: int) -> tuple[list, dict, dict, dict]:
-    """The VOT toolkit's vot.dataset.common.read_sequence, line for line: `sequence` (key=value; without `length`
-    the toolkit looks for frame images), groundtruth regions, *.tag / *.label (line == "1"), *.value (floats).
+def vot_sequence(seq: Path) -> tuple[np.ndarray, dict[str, list[int]], dict[str, np.ndarray], Any]:
+    """The VOT toolkit's own vot.dataset.common.read_sequence: `sequence` (key=value; without `length` the toolkit
+    looks for frame images), groundtruth.txt's regions as x,y,w,h (an empty one, NaN in the export, is the toolkit's
+    Special code 0: state unknown), and per frame the *.tag names set and the *.value numbers.
 
-    The toolkit itself is not a test dependency: vot-toolkit requires opencv-python, whose cv2 replaces the
-    opencv-contrib build dvsot's KCF and CSRT baselines need."""
-    props = dict(re.match(r"^([a-zA-Z0-9_\-.]+) *= *(.*)$", line.strip()).groups()
-                 for line in (seq / "sequence").read_text().splitlines() if "=" in line)
-    assert int(props["length"]) == length and int(props["width"]) > 0 and int(props["height"]) > 0
-    lines = (seq / "groundtruth.txt").read_text().splitlines()
-    regions = [[float(t) for t in line.strip().split(",")] for line in lines]
-    tags = {p.stem: [line.strip() == "1" for line in p.read_text().splitlines(keepends=True)]
-            for p in sorted(seq.glob("*.tag")) + sorted(seq.glob("*.label"))}
-    values = {p.stem: [float(line.strip()) for line in p.read_text().splitlines(keepends=True)]
-              for p in sorted(seq.glob("*.value"))}
-    assert len(regions) == length and all(len(v) == length for v in (*tags.values(), *values.values()))
-    return regions, tags, values, props
+    vot-toolkit comes from requirements-vot.txt with --no-deps: its opencv-python would replace the opencv-contrib
+    build that dvsot's KCF and CSRT baselines need."""
+    from vot.dataset import Sequence
+    from vot.dataset.common import read_sequence
+    from vot.region import Rectangle, Special
+
+    sequence = read_sequence(str(seq))
+    n = len(sequence)
+    boxes = []
+    for k in range(n):
+        region = sequence.groundtruth(k)
+        if isinstance(region, Special):
+            assert region.code == Sequence.UNKNOWN, (k, region)
+            boxes.append([np.nan] * 4)
+        else:
+            assert isinstance(region, Rectangle), (k, region)
+            boxes.append([region.x, region.y, region.width, region.height])
+    tags = {t: [int(t in sequence.tags(k)) for k in range(n)] for t in sequence.tags()}
+    values = {v: np.array([sequence.values(k)[v] for k in range(n)], np.float32) for v in sequence.values()}
+    # the toolkit pads a short tag or value file with False or 0.0: each file holds one line per frame itself
+    for path in [seq / "groundtruth.txt", *seq.glob("*.tag"), *seq.glob("*.value")]:
+        assert len(path.read_text().splitlines()) == n, path.name
+    return np.array(boxes, np.float32), tags, values, sequence
 
 
 def test_layouts_read_back_as_the_toolkits_read_them(tmp_path):
@@ -215,14 +226,17 @@ def test_layouts_read_back_as_the_toolkits_read_them(tmp_path):
     assert meta["nlp"] == "target"
 
     export_layout(str(data / "walls.h5"), tmp_path / "vot", "vot")
-    assert (tmp_path / "vot" / "list.txt").read_text().splitlines() == ["walls"]
-    regions, tags, values, props = vot_sequence(tmp_path / "vot" / "walls", 8)
-    np.testing.assert_array_equal(np.array(regions, np.float32), box)
-    assert {k: [int(v) for v in tags[k]] for k in WANT} == WANT
-    np.testing.assert_array_equal(np.array(values["visibility"], np.float32), vis)
-    np.testing.assert_array_equal(np.array(values["truncation"], np.float32), trunc)
-    assert props["fps"] == "100" and props["name"] == "walls"
-    assert (props["length"], props["width"], props["height"]) == ("8", str(W), str(H))
+    from vot.dataset.common import list_sequences
+
+    assert list_sequences(str(tmp_path / "vot")) == ["walls"]
+    regions, tags, values, sequence = vot_sequence(tmp_path / "vot" / "walls")
+    np.testing.assert_array_equal(regions, box)  # exact, NaN where the target is gone
+    assert tags == WANT
+    np.testing.assert_array_equal(values["visibility"], vis)
+    np.testing.assert_array_equal(values["truncation"], trunc)
+    assert sorted(values) == ["truncation", "visibility"]
+    assert (sequence.name, sequence.metadata("name"), sequence.metadata("fps")) == ("walls", "walls", 100)
+    assert (len(sequence), sequence.width, sequence.height) == (8, W, H)
 
 
 def test_a_layout_of_a_file_without_visibility_leaves_its_tags_out_and_says_so(tmp_path, capsys):
