@@ -71,19 +71,21 @@ def _notes(call) -> list[str]:
     return [str(w.message) for w in caught if issubclass(w.category, TrainingRuleWarning)]
 
 
-def test_the_shipped_sctn_checkpoint_is_trained_with_the_recipe() -> None:
-    """sctn_dvsot21 is seed 0 of the recipe: its recorded settings are TrainConfig's defaults, setting by setting,
-    and it loads without a note."""
-    from sctn.checkpoint import default_checkpoint_path, load_checkpoint
+@pytest.mark.parametrize("name", ["dvsot21", "varied"])
+def test_the_shipped_sctn_checkpoints_are_trained_with_the_recipe(name: str) -> None:
+    """sctn_dvsot21 and its varied sibling are seed 0 of the recipe: their recorded settings are TrainConfig's
+    defaults, setting by setting, and they load without a note."""
+    from sctn.checkpoint import load_checkpoint, shipped_checkpoint_path
     from sctn.training.snn import recipe, training_note
 
-    recorded = json.loads(default_checkpoint_path().with_suffix(".json").read_text())["train_config"]
+    path = shipped_checkpoint_path(name)
+    recorded = json.loads(path.with_suffix(".json").read_text())["train_config"]
     preset = recipe()
     assert {k: v for k, v in recorded.items() if k in preset and k != "network"} == \
         {k: v for k, v in preset.items() if k != "network"}
     assert {k: recorded["network"][k] for k in preset["network"]} == preset["network"]
     assert recorded["seed"] == 0 and training_note(recorded) is None
-    assert _notes(lambda: load_checkpoint()) == []
+    assert _notes(lambda: load_checkpoint(path)) == []
 
 
 def test_an_older_recipe_is_named_setting_by_setting(tmp_path: Path) -> None:
