@@ -146,7 +146,7 @@ def test_a_diverging_training_stops_with_one_line_and_writes_nothing(data, tmp_p
     assert snapshot(tmp_path) == before
 
 
-@pytest.mark.parametrize("index", range(4))
+@pytest.mark.parametrize("index", range(8))
 def test_shipped_checkpoints_load_checked_and_a_copy_without_its_json_loads_as_its_digest_says(index, tmp_path):
     """Each shipped .pt matches the digest it or its .json states; alone (no .json), one written with its digest
     loads quietly and one written before digests loads with one note."""
