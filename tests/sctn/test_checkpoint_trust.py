@@ -36,9 +36,8 @@ SMALL = NetworkConfig(channels=(2, 2, 2), fc=(4, 4))
 def shipped() -> list[tuple[Path, str]]:
     """(checkpoint, kind) of every checkpoint shipped with the packages."""
     from benchmarks.trackers.siamfc.model import default_siamfc_path
-    from sctn.ann import default_twin_path
-
     from benchmarks.trackers.trained_here import default_path
+    from sctn.ann import default_twin_path
 
     return [(default_checkpoint_path(), "sctn"), (shipped_checkpoint_path("varied"), "sctn"),
             (default_twin_path(), "sctn_ann"), (default_siamfc_path(), "siamfc"),
