@@ -379,16 +379,16 @@ class Dataset:
 
     def _load(self, name: str) -> np.ndarray:
         """A whole small dataset (ms_to_idx, boxes, segments) read into memory; a failed read names it."""
+        return self._stored(lambda: self._file[name][()], f"/{name}")
+
+    def _stored(self, read, what: str) -> np.ndarray:
+        """read() of stored data; a failed read (a Fletcher-32 mismatch or a broken chunk surfaces as OSError)
+        becomes the damaged-file error naming `what`."""
         try:
-            return self._file[name][()]
-        except (
-            OSError,
-            ValueError,
-            RuntimeError,
-        ) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise self._damaged(
-                f"cannot read /{name}, its stored data is corrupt ({exception_line(exc, kind=False)})"
-            ) from None
+            return read()
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise self._damaged(f"cannot read {what}, its stored data is corrupt "
+                                f"({exception_line(exc, kind=False)})") from None
 
     def _index_at(self, t_us: int) -> int:
         """Index of the first event with t >= t_us, from ms_to_idx and a search inside one millisecond."""
@@ -408,17 +408,7 @@ class Dataset:
         return lo + int(np.searchsorted(ts, t_us, side="left"))
 
     def _read(self, column: str, i0: int, i1: int) -> np.ndarray:
-        try:
-            return self._columns[column][i0:i1]
-        except (
-            OSError,
-            ValueError,
-            RuntimeError,
-        ) as exc:  # a Fletcher-32 mismatch or a broken chunk surfaces as OSError
-            raise self._damaged(
-                f"cannot read /events/{column} events {i0}..{i1 - 1}, its stored data is corrupt "
-                f"({exception_line(exc, kind=False)})"
-            ) from None
+        return self._stored(lambda: self._columns[column][i0:i1], f"/events/{column} events {i0}..{i1 - 1}")
 
     def _batch(self, i0: int, i1: int, t0_us: int, t1_us: int, source: str) -> EventBatch:
         """Events i0..i1-1, checked: sorted times in [t0_us, t1_us) (microseconds), pixels on the sensor, 0/1 flags."""
