@@ -39,6 +39,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from benchmarks.analysis.tables import write_text_atomic
+
 REFERENCE_DIR = Path(__file__).resolve().parent / "reference"
 REFERENCE = REFERENCE_DIR / "ci_metrics.json"
 TOLERANCE = {"ARscore": 0.05, "A": 0.05, "R": 0.08}
@@ -208,7 +210,7 @@ def stream_main(update: bool, workdir: Path) -> int:
     current = run_ci_stream(workdir)
     print(json.dumps(current, indent=2))
     if update:
-        STREAM_REFERENCE.write_text(json.dumps({
+        write_text_atomic(STREAM_REFERENCE, json.dumps({
             "command": "python -m benchmarks.experiments.regression --stream --update-reference",
             "trackers": list(STREAM_TRACKERS), "options": list(STREAM_OPTIONS), "settings": STREAM_SETTINGS,
             "sequence": {"made_by": "tests/synthetic.py moving_square_file", **STREAM_SEQUENCE},
@@ -244,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
             current = run_ci_benchmark(Path(tmp))
     print(json.dumps(current, indent=2))
     if args.update_reference:
-        REFERENCE.write_text(json.dumps({"tolerance_floor": TOLERANCE, "seeds": args.seeds, "spread": spread,
+        write_text_atomic(REFERENCE, json.dumps({"tolerance_floor": TOLERANCE, "seeds": args.seeds, "spread": spread,
                                          "metrics": current}, indent=2) + "\n")
         print(f"reference written: {REFERENCE}")
         return 0
