@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.analysis import paper
 from sctn.samples import TRACK
 
 
@@ -156,8 +157,6 @@ def sample_search(model, segments: list, n_candidates: int, seed: int = 0, crop:
 
 # the paper's Table 3 ("on processing a frame or a segment"): SCTN's ACs read as one evaluation (one candidate),
 # the Siamese trackers' MACs as one frame; their neuron-state updates are not given
-PAPER_SCTN_AC = 7.69e6
-PAPER_SIAMESE_MAC = {"SiamRPN": 4.82e9, "SiamMask": 1.26e10}
 REFERENCE = "SCTN per candidate (paper)"
 
 
@@ -165,8 +164,8 @@ def paper_rows(n_candidates: int) -> dict:
     """The paper's Table 3 restated per evaluation and per tracked segment (SCTN x n_candidates, Siamese x 1)."""
     from sctn.energy import tracker_energy
 
-    rows = {"paper SCTN (Table 3, per evaluation)": tracker_energy(n_candidates, ac_ops=PAPER_SCTN_AC)}
-    for name, macs in PAPER_SIAMESE_MAC.items():
+    rows = {"paper SCTN (Table 3, per evaluation)": tracker_energy(n_candidates, ac_ops=paper.SCTN_AC_PER_EVALUATION)}
+    for name, macs in paper.SIAMESE_MAC_PER_FRAME.items():
         rows[f"paper {name} (Table 3, per frame)"] = tracker_energy(1, mac_ops=macs)
     return {name: _flat(row) for name, row in rows.items()}
 

@@ -6,7 +6,7 @@ bench` writes); every directory of a group must hold one tracker and the same se
 runs. The standard deviation is over seeds with ddof 0, as in the ablation table:
 
     python -m benchmarks.analysis.seed_table "sctn, 5 epochs=runs/t2/bench_test/sctn_s*" \\
-        "sctn_ann, 5 epochs=runs/t2/bench_test/sctn_ann_s*" [--csv table.csv]
+        "sctn_ann, 5 epochs=runs/t2/bench_test/sctn_ann_s*" [--csv table.csv] [--paper]
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.analysis import paper
 from benchmarks.analysis.tables import TABLE_FILES, write_text_atomic
 from benchmarks.evaluation.metrics import ALL
 
@@ -79,8 +80,19 @@ def sequence_order(rows: list[SeedRow]) -> list[str]:
     return sorted(s for s in rows[0].cells if s != ALL) + [ALL]
 
 
-def to_markdown(rows: list[SeedRow]) -> str:
-    """A Markdown table: ARscore per sequence, then A / R / ARscore pooled, each mean ± std over seeds."""
+def paper_cells(tracker: str, seqs: list[str]) -> list[str] | None:
+    """The paper's Table 2 figures of `tracker` as table cells (ARscore per sequence, A / R / ARscore pooled), or
+    None when the paper has no such row or not every sequence of the table."""
+    row = paper.TABLE2.get(tracker)
+    if row is None or any(s not in row for s in seqs):
+        return None
+    a, r, ar = row[ALL]
+    return [f"{row[s][2]:.3f}" for s in seqs] + [f"{a:.3f} / {r:.3f} / **{ar:.3f}**"]
+
+
+def to_markdown(rows: list[SeedRow], with_paper: bool = False) -> str:
+    """A Markdown table: ARscore per sequence, then A / R / ARscore pooled, each mean ± std over seeds; with_paper
+    puts the paper's Table 2 row under the first row of each tracker the paper reports, on the same sequences."""
     seqs = [s for s in sequence_order(rows) if s != ALL]
     head = ["tracker", "seeds", *seqs, "all (A / R / ARscore)"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -88,11 +100,16 @@ def to_markdown(rows: list[SeedRow]) -> str:
     def pm(cell: tuple[float, float]) -> str:
         return f"{cell[0]:.3f} ± {cell[1]:.3f}"
 
+    shown: set[str] = set()
     for r in rows:
         pooled = r.cells[ALL]
         cells = [r.label, str(r.seeds), *(pm(r.cells[s]["ARscore"]) for s in seqs),
                  f"{pm(pooled['A'])} / {pm(pooled['R'])} / **{pm(pooled['ARscore'])}**"]
         lines.append("| " + " | ".join(cells) + " |")
+        published = paper_cells(r.tracker, seqs) if with_paper and r.tracker not in shown else None
+        if published:
+            shown.add(r.tracker)
+            lines.append("| " + " | ".join([f"{r.tracker}, paper", "-", *published]) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -126,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("groups", nargs="+", metavar="LABEL=DIRS",
                    help="a row's label and its seeds' bench output directories (comma-separated globs)")
     p.add_argument("--csv", type=Path, help="also write the figures as CSV here")
+    p.add_argument("--paper", action="store_true",
+                   help="put the paper's Table 2 row under each tracker it reports (benchmarks/analysis/paper.py)")
     args = p.parse_args(argv)
     try:
         rows = [seed_row(*parse_group(g)) for g in args.groups]
@@ -135,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"seed_table: {exc}", file=sys.stderr)
         return 2
-    print(to_markdown(rows), end="")
+    print(to_markdown(rows, with_paper=args.paper), end="")
     if args.csv:
         write_text_atomic(args.csv, to_csv(rows))
     return 0

@@ -16,10 +16,8 @@ from collections import defaultdict
 
 import torch
 
+from benchmarks.analysis.paper import SIAMESE_MAC_PER_FRAME
 from benchmarks.trackers.reference_nets import GOTURN, AutoMatch, Ocean, SiameseNet, SiamMask, SiamRPN, count_siamese
-
-# Table 3 of the SCTN paper: MACs per frame
-PAPER_MACS = {"SiamRPN": 4.82e9, "SiamMask": 1.26e10}
 
 
 def networks() -> list[tuple[str, SiameseNet, str]]:
@@ -53,7 +51,7 @@ def rows() -> list[dict]:
     for name, net, paper in networks():
         c = count_siamese(net)
         frame, init, both = (c[k]["mac_ops"] for k in ("per_frame", "init", "template_and_search"))
-        ref = PAPER_MACS.get(paper)
+        ref = SIAMESE_MAC_PER_FRAME.get(paper)
         out.append({"network": name, "per_frame": frame, "init": init, "template_and_search": both,
                     "paper_per_frame": ref, "per_frame_vs_paper": None if ref is None else frame / ref - 1,
                     "both_vs_paper": None if ref is None else both / ref - 1,

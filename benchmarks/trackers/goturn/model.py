@@ -3,8 +3,9 @@
 Narrowing (named in the benchmark's row, measured by `narrowing()` against reference_nets.GOTURN): every
 convolution has a quarter of CaffeNet's channels (96-256-384-384-256 -> 24-64-96-96-64) without its groups and
 with batch normalisation in place of local response normalisation (trained from scratch); the three fully
-connected layers have 512 units instead of 4096; one input channel (the ATSLTD frame, paper eq. 11, divided by
-255) instead of RGB. Crops 227 px, kernels, strides and pooling are CaffeNet's:
+connected layers have 128 units instead of 4096, so that the shipped checkpoint stays a few MB (fc6 alone,
+2 x 64 x 6 x 6 inputs, is 0.6 M weights at 128 units and 2.4 M at 512); one input channel (the ATSLTD frame,
+paper eq. 11, divided by 255) instead of RGB. Crops 227 px, kernels, strides and pooling are CaffeNet's:
 
 | layer | kernel, stride, pad | channels | 227 px crop |
 |---|---|---|---|
@@ -12,8 +13,8 @@ connected layers have 512 units instead of 4096; one input channel (the ATSLTD f
 | conv2 + BN + ReLU, max pool 3/2 | 5, 1, 2 | 24 -> 64 | 27 -> 13 |
 | conv3, conv4 + BN + ReLU | 3, 1, 1 | 64 -> 96 -> 96 | 13 |
 | conv5 + BN + ReLU, max pool 3/2 | 3, 1, 1 | 96 -> 64 | 13 -> 6 |
-| fc6, fc7, fc7b + ReLU | | 2 x 64 x 6 x 6 -> 512 -> 512 -> 512 | |
-| fc8 | | 512 -> 4 | |
+| fc6, fc7, fc7b + ReLU | | 2 x 64 x 6 x 6 -> 128 -> 128 -> 128 | |
+| fc8 | | 128 -> 4 | |
 
 The previous frame's crop and the current frame's pass the same trunk; their pool5 features are concatenated.
 fc8's bias starts at the output for "no motion" (the previous box, the middle half of the search crop), so that
@@ -33,7 +34,7 @@ from benchmarks.trackers.reference_nets import SiameseNet, conv_bn
 
 KIND = "goturn"
 NO_MOTION = (2.5, 2.5, 7.5, 7.5)  # crops.encode of the previous box in its own region (context 2)
-NARROWING = "conv channels /4 (24-64-96-96-64), fc 512 (4096), BN for LRN, 1 input channel"
+NARROWING = "conv channels /4 (24-64-96-96-64), fc 128 (4096), BN for LRN, 1 input channel"
 
 
 class GOTURNConfig(BaseModel):
@@ -42,7 +43,7 @@ class GOTURNConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     channels: tuple[int, int, int, int, int] = (24, 64, 96, 96, 64)
-    hidden: int = Field(512, ge=1)
+    hidden: int = Field(128, ge=1)
     size: int = Field(227, ge=1)
 
     def feature_size(self) -> int:
