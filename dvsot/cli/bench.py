@@ -16,7 +16,7 @@ benchmarks/evaluation/stream.py, docs/benchmarks.md).
 Before anything runs, every input is checked: flags, data files, --video names, the SCTN checkpoint
 (loaded into the model), each tracker built once with its --option values, and the output paths.
 --checkpoint goes to the one tracker of the run that takes a checkpoint (benchmarks.bench.plan.CHECKPOINT_TRACKERS;
-only sctn, sctn_ann and siamfc ship one): an error without one or with several (give each its own with
+each ships one, used when none is given): an error without one or with several (give each its own with
 --option NAME.checkpoint=PATH); a checkpoint of another model is refused naming the model it holds. The
 energy table (Table 3) is made when any of those runs: SCTN's rows from the run's SCTN checkpoint (or the
 shipped one), the ANN rows from the run's sctn_ann and siamfc checkpoints (or the shipped ones).
@@ -72,7 +72,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write <out>/<SEQUENCE>.gif: event frames with predicted and true boxes")
     takers = f"{', '.join(CHECKPOINT_TRACKERS[:-1])} or {CHECKPOINT_TRACKERS[-1]}"
     p.add_argument("--checkpoint", help=f"checkpoint for the run's --tracker {takers} (default: the shipped one; "
-                                        "only sctn, sctn_ann and siamfc ship one); an error without one of them, "
+                                        "each ships one); an error without one of them, "
                                         "or with several")
     p.add_argument("--no-energy", action="store_true", help=f"skip the energy table (made when {takers} runs)")
     p.add_argument("--option", action="append", default=[], metavar="TRACKER.KEY=VALUE",
