@@ -98,6 +98,6 @@ def train_goturn(files: list[Path], cfg: GOTURNTrainConfig, progress: bool = Tru
         err = np.hypot((o[:, 0] + o[:, 2] - y[:, 0] - y[:, 2]) / 2, (o[:, 1] + o[:, 3] - y[:, 1] - y[:, 3]) / 2) * px
         return {"loss": value, "iou": float(iou_xyxy(o, y).mean()), "centre_error_px": float(err.mean())}
 
-    return train_pairs("goturn", GOTURN(cfg.network), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+    return train_pairs("goturn", lambda: GOTURN(cfg.network), seqs, n_train, val_files, cfg, batch, loss, evaluate,
                        lambda m: f"val loss {m['loss']:.4f} iou {m['iou']:.2f} centre error "
                                  f"{m['centre_error_px']:.1f} px", progress, val_score)

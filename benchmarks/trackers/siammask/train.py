@@ -139,7 +139,7 @@ def train_siammask(files: list[Path], cfg: SiamMaskTrainConfig, progress: bool =
                 "centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, b[5]).mean())}
 
     model, history = train_pairs(
-        "siammask", SiamMask(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+        "siammask", lambda: SiamMask(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
         lambda m: f"val loss {m['loss']:.4f} mask {m['mask_loss']:.4f} centre error {m['centre_error_px']:.1f} px",
         progress, val_score)
     history["mask_sources"] = {str(f): s.source for f, s in zip(list(files) + list(val_files or []), seqs)}

@@ -118,7 +118,7 @@ def train_siamrpn(files: list[Path], cfg: SiamRPNTrainConfig, progress: bool = T
         return {"loss": value, "centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, b[4]).mean())}
 
     model, history = train_pairs(
-        "siamrpn", SiamRPN(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+        "siamrpn", lambda: SiamRPN(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
         lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px iou {m['iou']:.2f}",
         progress, val_score)
     return model, history
