@@ -75,3 +75,13 @@ def train_pairs(name: str, build: Callable[[], torch.nn.Module], seqs: list, n_t
 def pools_of(seqs: list, n_train: int, has_val_files: bool) -> list[np.ndarray]:
     """The template pools of split_items (frames a sequence's templates may come from)."""
     return split_items([len(s.segments) for s in seqs], n_train, has_val_files)[2]
+
+
+def load_pairs(load: Callable[[Path, float], object], files: list[Path], val_files: list[Path] | None,
+               min_box_px: float) -> tuple[list, int, list[np.ndarray]]:
+    """(sequences, n_train, template pools): `load(path, min_box_px)` of the training files then the validation
+    files, how many of them are training sequences, and split_items's template pools."""
+    seqs = [load(f, min_box_px) for f in files]
+    n_train = len(seqs)
+    seqs += [load(f, min_box_px) for f in (val_files or [])]
+    return seqs, n_train, pools_of(seqs, n_train, bool(val_files))

@@ -24,7 +24,7 @@ from torch.nn import functional as F
 from benchmarks.trackers.ocean.boxes import assign, decode, iou_loss, locations
 from benchmarks.trackers.ocean.crops import pair_crops
 from benchmarks.trackers.ocean.model import TOTAL_STRIDE, Ocean, OceanConfig
-from benchmarks.trackers.pair_training import pools_of, train_pairs
+from benchmarks.trackers.pair_training import load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from dvsot.core.bounds import MAX_LEARNING_RATE
@@ -96,10 +96,7 @@ def train_anchor_free(build: Callable[[], nn.Module], name: str, files: list[Pat
     """Train a new network `build()` (Ocean's interface: forward(z, x, z_box) -> distances, logits, object-aware
     logits) on the dataset files; the model and its history (validation as in SiamFC's training)."""
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
-    pools = pools_of(seqs, n_train, bool(val_files))
+    seqs, n_train, pools = load_pairs(load_frames, files, val_files, cfg.min_box_px)
     model: nn.Module | None = None  # the network build() makes (after the data's checks): its config sizes the crops
 
     def built() -> nn.Module:

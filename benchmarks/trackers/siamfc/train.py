@@ -25,7 +25,7 @@ from pydantic import Field
 from torch.nn import functional as F
 
 from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.pair_training import pools_of, train_pairs
+from benchmarks.trackers.pair_training import load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
 from dvsot.core.bounds import MAX_LEARNING_RATE
@@ -150,10 +150,8 @@ def train_siamfc(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = Tru
     has the loss, the mean centre error (px) and the mean training loss since the previous entry; `val_score(model)`
     is added every cfg.val_arscore_every steps and at the end."""
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
-    pools = pools_of(seqs, n_train, bool(val_files))  # exemplars come from training segments only
+    # exemplars come from training segments only
+    seqs, n_train, pools = load_pairs(load_frames, files, val_files, cfg.min_box_px)
 
     def batch(picks: list, rng: np.random.Generator) -> tuple[torch.Tensor, ...]:
         items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
