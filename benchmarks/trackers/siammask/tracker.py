@@ -41,7 +41,6 @@ class SiamMaskTracker(RPNTracker):
     """SiamMask on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "siammask"
-    kind = "siammask"
     options_type = SiamMaskOptions
 
     @staticmethod
