@@ -14,7 +14,7 @@ import torch
 
 from benchmarks.trackers import register
 from benchmarks.trackers.goturn.crops import crop_region, decode, region
-from benchmarks.trackers.goturn.model import GOTURN
+from benchmarks.trackers.goturn.model import GOTURN, load_goturn
 from benchmarks.trackers.trained_here import NetworkTracker, check_sensor, dense_counts, sensor_problem
 from dvsot.core.strict import Strict
 from dvsot.dataset import Segment
@@ -34,13 +34,7 @@ class GOTURNTracker(NetworkTracker):
 
     name = "goturn"
     options_type = GOTURNOptions
-
-    @staticmethod
-    def load(path: str | None) -> tuple[GOTURN, dict]:
-        """The network and metadata of a goturn checkpoint."""
-        from benchmarks.trackers.goturn.model import load_goturn
-
-        return load_goturn(path)
+    load = staticmethod(load_goturn)
 
     def _start(self, model: GOTURN, opts: GOTURNOptions) -> None:
         self.model = model

@@ -21,9 +21,10 @@ from pydantic import Field
 from benchmarks.trackers import register
 from benchmarks.trackers.ocean.boxes import decode, locations
 from benchmarks.trackers.ocean.crops import box_in_crop
-from benchmarks.trackers.ocean.model import TOTAL_STRIDE
+from benchmarks.trackers.ocean.model import TOTAL_STRIDE, load_ocean
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamfc.tracker import hann_window
+from benchmarks.trackers.siamrpn.tracker import select
 from benchmarks.trackers.trained_here import NetworkTracker, dense_counts
 from dvsot.core.errors import UserError
 from dvsot.core.strict import Float, Strict
@@ -40,17 +41,6 @@ class AnchorFreeOptions(Strict):
     penalty_k: Float = Field(0.04, ge=0)
     lr: Float = Field(0.4, ge=0, le=1)
     ratio: Float = Field(0.5, ge=0, le=1)
-
-
-def change(r: np.ndarray) -> np.ndarray:
-    """max(r, 1 / r): how far a ratio is from 1 either way."""
-    return np.maximum(r, 1.0 / r)
-
-
-def padded_size(w: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """SiamRPN's size measure sqrt((w + p)(h + p)), p = (w + h) / 2."""
-    p = (w + h) / 2
-    return np.sqrt((w + p) * (h + p))
 
 
 class AnchorFreeTracker(NetworkTracker):
@@ -96,13 +86,8 @@ class AnchorFreeTracker(NetworkTracker):
         scale = cfg.search_size / x_ext  # crop px per sensor px
         w = np.maximum(boxes[2] - boxes[0], 1e-3)
         h = np.maximum(boxes[3] - boxes[1], 1e-3)
-        tw, th = self.size * scale
-        s_c = change(padded_size(w, h) / padded_size(tw, th))
-        r_c = change((tw / th) / (w / h))
-        penalty = np.exp(-(r_c * s_c - 1) * self.opts.penalty_k)
-        pscore = penalty * score
-        wi = self.opts.window_influence
-        best = int(np.argmax(pscore * (1 - wi) + self.window * wi))
+        best, penalty = select(score, np.stack([w, h]), self.size * scale, self.window, self.opts.penalty_k,
+                               self.opts.window_influence)
         b = boxes[:, best]
         self.centre = np.clip(self.centre + ((b[:2] + b[2:]) / 2 - cfg.search_size / 2) / scale, 0, self.wh)
         lr = penalty[best] * score[best] * self.opts.lr
@@ -134,13 +119,7 @@ class OceanTracker(AnchorFreeTracker):
     """Ocean on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "ocean"
-
-    @staticmethod
-    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
-        """The network of an ocean checkpoint."""
-        from benchmarks.trackers.ocean.model import load_ocean
-
-        return load_ocean(path)
+    load = staticmethod(load_ocean)
 
 
 def trained_tracker(model: torch.nn.Module, seed: int) -> OceanTracker:

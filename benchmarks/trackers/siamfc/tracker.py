@@ -18,7 +18,7 @@ from pydantic import Field
 
 from benchmarks.trackers import register
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
-from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC
+from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, load_siamfc
 from benchmarks.trackers.trained_here import NetworkTracker, dense_counts
 from dvsot.core.strict import Float, Int, Strict
 from dvsot.dataset import Segment
@@ -73,13 +73,7 @@ class SiamFCTracker(NetworkTracker):
 
     name = "siamfc"
     options_type = SiamFCOptions
-
-    @staticmethod
-    def load(path: str | None) -> tuple[SiamFC, dict]:
-        """The network and metadata of a siamfc checkpoint."""
-        from benchmarks.trackers.siamfc.model import load_siamfc
-
-        return load_siamfc(path)
+    load = staticmethod(load_siamfc)
 
     def _start(self, model: SiamFC, opts: SiamFCOptions) -> None:
         self.opts = opts

@@ -19,7 +19,7 @@ from pydantic import Field
 from benchmarks.trackers import register
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamrpn.anchors import decode, make_anchors
-from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN
+from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN, load_siamrpn
 from benchmarks.trackers.trained_here import NetworkTracker, check_sensor, dense_counts, sensor_problem
 from dvsot.core.strict import Float, Strict
 from dvsot.dataset import Segment
@@ -47,12 +47,12 @@ def context_size(w: np.ndarray, h: np.ndarray) -> np.ndarray:
     return np.sqrt((w + p) * (h + p))
 
 
-def select(score: np.ndarray, boxes: np.ndarray, size_crop: np.ndarray, window: np.ndarray, penalty_k: float,
+def select(score: np.ndarray, sizes: np.ndarray, size_crop: np.ndarray, window: np.ndarray, penalty_k: float,
            window_influence: float) -> tuple[int, np.ndarray]:
-    """SiamRPN's proposal selection: the index of the best of the flat proposals (score (N,), boxes (4, N) crop
-    px) for a target of size_crop (w, h crop px), and the scale/aspect penalty of every proposal."""
-    s_c = change(context_size(boxes[2], boxes[3]) / context_size(size_crop[0], size_crop[1]))
-    r_c = change((size_crop[0] / size_crop[1]) / (boxes[2] / boxes[3]))
+    """SiamRPN's proposal selection (Ocean's too): the index of the best of the flat proposals (score (N,), sizes
+    (2, N) w, h crop px) for a target of size_crop (w, h crop px), and the scale/aspect penalty of every proposal."""
+    s_c = change(context_size(sizes[0], sizes[1]) / context_size(size_crop[0], size_crop[1]))
+    r_c = change((size_crop[0] / size_crop[1]) / (sizes[0] / sizes[1]))
     penalty = np.exp(-(r_c * s_c - 1.0) * penalty_k)
     pscore = penalty * score * (1 - window_influence) + window * window_influence
     return int(np.argmax(pscore)), penalty
@@ -64,13 +64,7 @@ class RPNTracker(NetworkTracker):
 
     name = "siamrpn"
     options_type: type = SiamRPNOptions
-
-    @staticmethod
-    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
-        """The network and metadata of a checkpoint of this tracker's model."""
-        from benchmarks.trackers.siamrpn.model import load_siamrpn
-
-        return load_siamrpn(path)
+    load = staticmethod(load_siamrpn)
 
     def _start(self, model: torch.nn.Module, opts) -> None:
         self.opts, self.model = opts, model
@@ -107,7 +101,7 @@ class RPNTracker(NetworkTracker):
         """Move the state by the selected proposal of one search crop's outputs; returns its flat index."""
         score = torch.softmax(scores[0], dim=0)[1].reshape(-1).numpy().astype(np.float64)
         boxes = decode(offsets[0].reshape(4, -1).numpy(), self.anchors)
-        best, penalty = select(score, boxes, self.size * scale, self.window, self.opts.penalty_k,
+        best, penalty = select(score, boxes[2:], self.size * scale, self.window, self.opts.penalty_k,
                                self.opts.window_influence)
         found = boxes[:, best] / scale
         lr = penalty[best] * score[best] * self.opts.lr
