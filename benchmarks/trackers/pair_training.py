@@ -15,8 +15,23 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from pydantic import Field
 
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
+
+
+class PairTrainConfig(TrainBudget):
+    """Settings of a training on frame pairs: TrainBudget's with these defaults, the pairs' gap (segments between
+    template and search) and the search crop's augmentation (shift in crop px, scale by up to 1 +- stretch)."""
+
+    epochs: int = Field(20, ge=1)
+    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
+    batch_segments: int = Field(8, ge=1)  # pairs per step
+    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
+    max_gap: int = Field(100, ge=1)  # segments between template and search
+    shift_px: float = Field(32.0, ge=0)
+    stretch: float = Field(0.05, ge=0)
 
 
 def split_items(lengths: Sequence[int], n_train: int, has_val_files: bool) -> tuple[list, list, list]:

@@ -24,23 +24,9 @@ from torch.nn import functional as F
 from benchmarks.trackers.ocean.boxes import assign, decode, iou_loss, locations
 from benchmarks.trackers.ocean.crops import pair_crops
 from benchmarks.trackers.ocean.model import TOTAL_STRIDE, Ocean, OceanConfig
-from benchmarks.trackers.pair_training import load_pairs, train_pairs
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget
-
-
-class PairTrainConfig(TrainBudget):
-    """Settings of a Siamese anchor-free training: TrainBudget's, the pairs' gap and augmentation."""
-
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
-    batch_segments: int = Field(8, ge=1)  # pairs per step
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)  # segments between template and search
-    shift_px: float = Field(32.0, ge=0)
-    stretch: float = Field(0.05, ge=0)
 
 
 class OceanTrainConfig(PairTrainConfig):

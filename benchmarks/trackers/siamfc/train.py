@@ -25,24 +25,16 @@ from pydantic import Field
 from torch.nn import functional as F
 
 from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.pair_training import load_pairs, train_pairs
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget
 
 
-class SiamFCTrainConfig(TrainBudget):
-    """SiamFC training settings: TrainBudget's (pairs: one search segment each, optimiser, budget) with SiamFC's
-    defaults, the pairs' gap and augmentation, the label radius and the network."""
+class SiamFCTrainConfig(PairTrainConfig):
+    """SiamFC training settings: PairTrainConfig's (pairs: one search segment each, optimiser, budget, gap and
+    augmentation) with SiamFC's shift, the label radius and the network."""
 
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
-    batch_segments: int = Field(8, ge=1)  # pairs per step
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)  # segments between exemplar and search
     shift_px: float = Field(8.0, ge=0)
-    stretch: float = Field(0.05, ge=0)
     radius_px: float = Field(16.0, ge=0)
     network: SiamFCConfig = Field(default_factory=SiamFCConfig)
 

@@ -17,25 +17,17 @@ import torch
 from pydantic import Field
 from torch.nn import functional as F
 
-from benchmarks.trackers.pair_training import load_pairs, train_pairs
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from benchmarks.trackers.siamrpn.anchors import decode, make_anchors, targets
 from benchmarks.trackers.siamrpn.crops import search_crop, search_window, template_crop
 from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN, SiamRPNConfig
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget
 
 
-class SiamRPNTrainConfig(TrainBudget):
-    """SiamRPN training settings: TrainBudget's with these defaults, the pairs' gap and augmentation, the anchors'
-    IoU thresholds, the regression's weight and the network."""
+class SiamRPNTrainConfig(PairTrainConfig):
+    """SiamRPN training settings: PairTrainConfig's with SiamRPN's stretch, the anchors' IoU thresholds, the
+    regression's weight and the network."""
 
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)
-    batch_segments: int = Field(8, ge=1)
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)
-    shift_px: float = Field(32.0, ge=0)
     stretch: float = Field(0.1, ge=0, lt=1)
     pos_iou: float = Field(0.6, gt=0, le=1)
     neg_iou: float = Field(0.3, ge=0, le=1)
