@@ -1,5 +1,6 @@
-"""Test-wide set-up: the shared helpers beside this file (synthetic.py) import as top-level modules, and
-`--cpu-durations N` lists the tests that cost the most CPU time."""
+"""Test-wide set-up: the shared helpers beside this file (synthetic.py) import as top-level modules,
+`--cpu-durations N` lists the tests that cost the most CPU time, and `refuse_calls` makes named functions fail a
+test if they run."""
 
 import sys
 from pathlib import Path
@@ -9,6 +10,19 @@ import pytest
 HELPERS = str(Path(__file__).resolve().parent)
 if HELPERS not in sys.path:
     sys.path.insert(0, HELPERS)
+
+
+
+@pytest.fixture
+def refuse_calls(monkeypatch: pytest.MonkeyPatch):
+    """A function taking dotted names of functions: each then fails the test, naming itself, if it is called."""
+    def refuse(*targets: str) -> None:
+        for target in targets:
+            def boom(*args, _target: str = target, **kwargs):
+                raise AssertionError(f"{_target} was called")
+            monkeypatch.setattr(target, boom)
+    return refuse
+
 
 _CPU_START = pytest.StashKey[float]()
 _CPU_ROWS: list[tuple[float, str]] = []  # (CPU seconds, test id), in the process that prints the summary

@@ -88,6 +88,13 @@ def moving_square_file(path: Path, width: int = 160, height: int = 120, size: in
     return path
 
 
+def small_square_file(directory: Path, name: str = "syn.h5") -> Path:
+    """A small labelled dataset file in directory (64x48, 60 ms, a 12 px square from (10, 10) at (100, 40) px/s):
+    enough for a training run of a step or two."""
+    return moving_square_file(directory / name, width=64, height=48, size=12, duration_ms=60,
+                              velocity_px_s=(100.0, 40.0), start=(10.0, 10.0))
+
+
 def kept_sequence(directory: Path, width: int = 96, height: int = 72, n: int = 41, name: str = "seq",
                   frames_dir: Path | None = None, start: tuple[float, float] = (10, 20),
                   split: str = "test", params: EventParams | None = None,

@@ -77,8 +77,8 @@ def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar"
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from benchmarks.analysis.pictures import save_figure
     from benchmarks.evaluation.safe_names import plot_text
-    from dvsot.runtime.outputs import replacing
 
     cols = _columns(summary)
     fig, ax = plt.subplots(figsize=(max(5.0, 1.1 * len(cols) + 2), 4))
@@ -97,10 +97,7 @@ def plot_attributes(summary: dict, path: str | os.PathLike, protocol: str = "ar"
     ax.grid(alpha=0.3, axis="y")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with replacing(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, 120, bbox_inches="tight")
 
 
 def write_attributes(results: list[SequenceResult], out_dir: str | os.PathLike, protocol: str = "ar") -> list[Path]:

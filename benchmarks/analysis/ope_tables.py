@@ -5,11 +5,10 @@ The scores and curves come from benchmarks.evaluation.ope.summarise_ope.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
-from benchmarks.analysis.tables import write_text_atomic
+from benchmarks.analysis.tables import write_summary
 from benchmarks.evaluation.metrics import ALL
 from benchmarks.evaluation.ope import IOU_THRESHOLDS, PIXEL_THRESHOLDS, PRECISION_PX
 from benchmarks.evaluation.safe_names import markdown_cell  # sequence and tracker names are free text
@@ -43,8 +42,8 @@ def plot_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from benchmarks.analysis.pictures import save_figure
     from benchmarks.evaluation.safe_names import plot_text
-    from dvsot.runtime.outputs import replacing
 
     written = []
     for name, xs, key, score, xlabel in (
@@ -63,17 +62,10 @@ def plot_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
         ax.grid(alpha=0.3)
         path = Path(out_dir) / name
         path.parent.mkdir(parents=True, exist_ok=True)
-        with replacing(path) as tmp:
-            fig.savefig(tmp, dpi=120, bbox_inches="tight")
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, path, 120, bbox_inches="tight"))
     return written
 
 
 def write_ope(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
     """ope.json (scores and curves), ope.md (the table) and the two plots in out_dir."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [write_text_atomic(out / "ope.json", json.dumps(summary, indent=2)),
-             write_text_atomic(out / "ope.md", format_ope(summary) + "\n")]
-    return paths + plot_ope(summary, out)
+    return write_summary(out_dir, "ope", summary, format_ope(summary)) + plot_ope(summary, out_dir)

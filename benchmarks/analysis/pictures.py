@@ -68,15 +68,16 @@ def plot_iou_over_time(results: Mapping[str, Mapping[str, np.ndarray]], out_png:
     return out
 
 
-def save_figure(fig, out_png: str | os.PathLike, dpi: int) -> Path:
-    """Save a figure as PNG via a temp file and a rename (a picture is never half-written); closes the figure."""
+def save_figure(fig, out_png: str | os.PathLike, dpi: int, bbox_inches: str | None = None) -> Path:
+    """Save a figure as PNG (dpi dots per inch; bbox_inches "tight" crops it to what is drawn) via a temp file and
+    a rename (a picture is never half-written); closes the figure."""
     import matplotlib.pyplot as plt
 
     from dvsot.runtime.outputs import replacing
 
     try:
         with replacing(out_png) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
+            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches=bbox_inches)
     finally:
         plt.close(fig)
     return Path(out_png)

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.analysis.tables import write_text_atomic
+from benchmarks.analysis.tables import write_summary, write_text_atomic
 from benchmarks.evaluation.latency import FREE
 from benchmarks.evaluation.metrics import ALL
 from benchmarks.evaluation.ope import PRECISION_PX
@@ -110,27 +109,19 @@ def scale_figure(summary: dict):
 
 def plot_latency_scale(summary: dict, path: str | os.PathLike) -> Path:
     """latency_scale.png (scale_figure) written atomically to path."""
-    import matplotlib.pyplot as plt
-
-    from dvsot.runtime.outputs import replacing
+    from benchmarks.analysis.pictures import save_figure
 
     fig = scale_figure(summary)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with replacing(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, 120, bbox_inches="tight")
 
 
 def write_stream(summary: dict, out_dir: str | os.PathLike) -> list[Path]:
     """stream.json, stream.md and (when scaled latencies ran) latency_scale.png in out_dir."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [write_text_atomic(out / "stream.json", json.dumps(summary, indent=2)),
-             write_text_atomic(out / "stream.md", format_stream(summary) + "\n")]
+    paths = write_summary(out_dir, "stream", summary, format_stream(summary))
     if summary.get("scale_curves"):
-        paths.append(plot_latency_scale(summary, out / SCALE_PLOT))
+        paths.append(plot_latency_scale(summary, Path(out_dir) / SCALE_PLOT))
     return paths
 
 

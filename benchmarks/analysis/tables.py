@@ -240,6 +240,15 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
+def write_summary(out_dir: str | Path, stem: str, summary: dict, markdown: str) -> list[Path]:
+    """<stem>.json (summary, indented) and <stem>.md (markdown and a newline) in out_dir, made if missing; their
+    paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return [write_text_atomic(out / f"{stem}.json", json.dumps(summary, indent=2)),
+            write_text_atomic(out / f"{stem}.md", markdown + "\n")]
+
+
 TABLE_FILES = {"txt": "table.txt", "csv": "results.csv", "json": "results.json", "md": "results.md",
                "tex": "results.tex"}
 

@@ -27,6 +27,8 @@ import json
 import sys
 import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -64,20 +66,48 @@ def bias_free(model):
     return net.eval()
 
 
+def timing_segments(path: Path, segments: int) -> tuple:
+    """(first segment with a ground-truth box, sensor (width, height), the up to `segments` segments after it) of
+    a dataset file: what a timing run initialises on and tracks."""
+    from dvsot.dataset import Dataset
+
+    with Dataset(path) as ds:
+        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
+        return ds.segment(first), (ds.width, ds.height), list(ds.segments(first + 1, first + 1 + segments))
+
+
+def best_run(make: Callable[[], object], s0, wh: tuple[int, int], segs: list, repeat: int) -> tuple:
+    """(tracker, wall s, CPU s, IoU per segment) of the fastest (wall time) of `repeat` runs of a benchmark tracker
+    `make()`: init on s0's box, then an update per segment of segs."""
+    from dvsot.dataset.boxes import iou_xywh
+
+    best = None
+    for _ in range(repeat):
+        tracker = make()
+        tracker.init(s0, s0.box.copy(), *wh)
+        start, cpu = time.perf_counter(), time.process_time()
+        ious = [float(iou_xywh(tracker.update(s), s.box)) for s in segs]
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        if best is None or wall < best[1]:
+            best = (tracker, wall, cpu, ious)
+    return best
+
+
+def rates(n: int, wall: float, cpu: float) -> dict:
+    """Segments, segments/s, wall and CPU ms per segment of n segments tracked in wall (and cpu) seconds."""
+    return {"segments": n, "segments_per_s": round(n / wall, 2), "ms_per_segment": round(1000 * wall / n, 2),
+            "cpu_ms_per_segment": round(1000 * cpu / n, 2)}
+
+
 def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: str = "bilinear",
               repeat: int = 1, tracker_cls=None, boxes_out: list | None = None) -> dict:
-    from dvsot.dataset import Dataset
     from dvsot.dataset.boxes import iou_xywh
     from sctn.tracker import SCTNTracker
 
     tracker_cls = tracker_cls or SCTNTracker
 
     torch.set_num_threads(threads)
-    with Dataset(path) as ds:
-        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
-        s0 = ds.segment(first)
-        wh = (ds.width, ds.height)
-        segs = list(ds.segments(first + 1, first + 1 + segments))
+    s0, wh, segs = timing_segments(path, segments)
     best = None
     for _ in range(repeat):
         tracker = tracker_cls(model, seed=0, fast=fast, finetune_iters=0, crop=crop)
@@ -94,39 +124,21 @@ def time_mode(model, path: Path, fast: bool, segments: int, threads: int, crop: 
     # cpu seconds show the cost when the machine is shared (wall time then overstates it)
     path_used = getattr(tracker, "candidate_path", None) if not fast else None
     return {"fast": fast, "crop": crop if fast else None, "per_candidate": path_used, "threads": threads,
-            "segments": len(segs),
-            "segments_per_s": round(len(segs) / wall, 2), "ms_per_segment": round(1000 * wall / len(segs), 2),
-            "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
-            "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
+            **rates(len(segs), wall, cpu), "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)}
 
 
 def time_ann_trackers(path: Path, segments: int, repeat: int, twin_checkpoint: str | None = None,
                       siamfc_checkpoint: str | None = None) -> list[dict]:
     """Segments/s of sctn_ann and siamfc on one thread (best of `repeat` runs; init, i.e. fine-tuning, excluded)."""
     from benchmarks.trackers import get_tracker
-    from dvsot.dataset import Dataset
-    from dvsot.dataset.boxes import iou_xywh
 
     torch.set_num_threads(1)
-    with Dataset(path) as ds:
-        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
-        s0, wh = ds.segment(first), (ds.width, ds.height)
-        segs = list(ds.segments(first + 1, first + 1 + segments))
+    s0, wh, segs = timing_segments(path, segments)
     runs = []
     for name, ckpt in (("sctn_ann", twin_checkpoint), ("siamfc", siamfc_checkpoint)):
-        best = None
-        for _ in range(repeat):
-            tracker = get_tracker(name, checkpoint=ckpt, **({"energy_every": 0} if name == "sctn_ann" else {}))
-            tracker.init(s0, s0.box.copy(), *wh)
-            start, cpu = time.perf_counter(), time.process_time()
-            ious = [float(iou_xywh(tracker.update(s), s.box)) for s in segs]
-            wall, cpu = time.perf_counter() - start, time.process_time() - cpu
-            if best is None or wall < best[0]:
-                best = (wall, cpu, ious)
-        wall, cpu, ious = best
-        runs.append({"tracker": name, "threads": 1, "segments": len(segs),
-                     "segments_per_s": round(len(segs) / wall, 2), "ms_per_segment": round(1000 * wall / len(segs), 2),
-                     "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
+        make = partial(get_tracker, name, checkpoint=ckpt, **({"energy_every": 0} if name == "sctn_ann" else {}))
+        _, wall, cpu, ious = best_run(make, s0, wh, segs, repeat)
+        runs.append({"tracker": name, "threads": 1, **rates(len(segs), wall, cpu),
                      "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3)})
     return runs
 

@@ -19,7 +19,7 @@ import argparse
 import json
 import sys
 import tempfile
-import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -61,29 +61,14 @@ def time_tracker(name: str, checkpoint: str | None, path: Path, segments: int, r
                  weights: str | None = None) -> dict:
     """Segments/s of one tracker on one thread (best of `repeat` runs), its MACs per frame and, on a checkpoint, its
     mean IoU without re-initialisation; `weights` says where the checkpoint came from."""
-    from dvsot.dataset import Dataset
-    from dvsot.dataset.boxes import iou_xywh
+    from benchmarks.perf.bench_tracking import best_run, rates, timing_segments
 
     torch.set_num_threads(1)
-    with Dataset(path) as ds:
-        first = next(i for i, b in enumerate(ds.segment_boxes()) if np.isfinite(b).all())
-        s0, wh = ds.segment(first), (ds.width, ds.height)
-        segs = list(ds.segments(first + 1, first + 1 + segments))
-    best = None
-    for _ in range(repeat):
-        tracker = make_tracker(name, checkpoint)
-        tracker.init(s0, s0.box.copy(), *wh)
-        start, cpu = time.perf_counter(), time.process_time()
-        ious = [float(iou_xywh(tracker.update(s), s.box)) for s in segs]
-        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
-        if best is None or wall < best[0]:
-            best = (wall, cpu, ious)
-    wall, cpu, ious = best
+    s0, wh, segs = timing_segments(path, segments)
+    tracker, wall, cpu, ious = best_run(partial(make_tracker, name, checkpoint), s0, wh, segs, repeat)
     return {"tracker": name, "checkpoint": checkpoint or "untrained (timing only)",
             "weights": weights or ("given" if checkpoint else "untrained (timing only)"), "threads": 1,
-            "segments": len(segs), "segments_per_s": round(len(segs) / wall, 2),
-            "ms_per_segment": round(1000 * wall / len(segs), 2), "cpu_ms_per_segment": round(1000 * cpu / len(segs), 2),
-            "mac_per_frame": tracker.energy_per_segment()["mac_ops"],
+            **rates(len(segs), wall, cpu), "mac_per_frame": tracker.energy_per_segment()["mac_ops"],
             "mean_iou_without_reinit": round(float(np.nanmean(ious)), 3) if checkpoint else None}
 
 

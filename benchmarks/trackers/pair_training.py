@@ -1,4 +1,5 @@
-"""The training loop shared by the Siamese-family trackers trained here (SiamRPN, SiamMask, GOTURN) on frame pairs.
+"""The training loop shared by the Siamese-family trackers trained here (SiamFC, SiamRPN, SiamMask, GOTURN, Ocean,
+AutoMatch) on frame pairs.
 
 Data as SiamFC's training (benchmarks/trackers/siamfc/train.py): the usable segments of the training files (ground
 truth of at least `min_box_px` a side), every 10th held out for validation unless validation files are given (then
@@ -14,8 +15,23 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from pydantic import Field
 
+from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
+
+
+class PairTrainConfig(TrainBudget):
+    """Settings of a training on frame pairs: TrainBudget's with these defaults, the pairs' gap (segments between
+    template and search) and the search crop's augmentation (shift in crop px, scale by up to 1 +- stretch)."""
+
+    epochs: int = Field(20, ge=1)
+    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
+    batch_segments: int = Field(8, ge=1)  # pairs per step
+    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
+    max_gap: int = Field(100, ge=1)  # segments between template and search
+    shift_px: float = Field(32.0, ge=0)
+    stretch: float = Field(0.05, ge=0)
 
 
 def split_items(lengths: Sequence[int], n_train: int, has_val_files: bool) -> tuple[list, list, list]:
@@ -35,15 +51,16 @@ def split_items(lengths: Sequence[int], n_train: int, has_val_files: bool) -> tu
     return train_items, val_items, pools
 
 
-def train_pairs(name: str, model: torch.nn.Module, seqs: list, n_train: int, val_files: list[Path] | None,
-                cfg: TrainBudget, batch: Callable[[list, np.random.Generator], tuple],
-                loss: Callable[[torch.nn.Module, tuple], torch.Tensor],
+def train_pairs(name: str, build: Callable[[], torch.nn.Module], seqs: list, n_train: int,
+                val_files: list[Path] | None, cfg: TrainBudget, batch: Callable[[list, np.random.Generator], tuple],
+                loss: Callable[[torch.nn.Module, tuple], torch.Tensor | tuple[torch.Tensor, dict]],
                 evaluate: Callable[[torch.nn.Module, tuple], dict],
                 report: Callable[[dict], str], progress: bool = True,
                 val_score: Callable[[torch.nn.Module], dict] | None = None) -> tuple[torch.nn.Module, dict]:
-    """Train `model` with Adam on items of `seqs` (objects with a `segments` array); `batch(items, rng)` makes a
-    step's tensors from (sequence, frame) items, `loss(model, batch)` its loss, `evaluate(model, batch)` the
-    validation figures (a dict with "loss") on a fixed validation batch. Returns the model and its history."""
+    """Train a new network `build()` with Adam on items of `seqs` (objects with a `segments` array); `batch(items,
+    rng)` makes a step's tensors from (sequence, frame) items, `loss(model, batch)` its loss (or the loss and its
+    terms, a dict the history keeps), `evaluate(model, batch)` the validation figures (a dict with "loss") on a
+    fixed validation batch. The network is built after the data's checks. Returns the model and its history."""
     rng = np.random.default_rng(cfg.seed)
     train_items, val_items, _ = split_items([len(s.segments) for s in seqs], n_train, bool(val_files))
     if not train_items:
@@ -51,12 +68,14 @@ def train_pairs(name: str, model: torch.nn.Module, seqs: list, n_train: int, val
     cfg.check_steps(len(train_items))
     if val_files and not val_items:
         raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
+    model = build()
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     val_pick = spread(val_items, cfg.val_segments)
     val_batch = batch(val_pick, np.random.default_rng(cfg.seed + 1)) if val_pick else None
 
     def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
-        return loss(model, batch(picks, rng)), {}
+        value = loss(model, batch(picks, rng))
+        return value if isinstance(value, tuple) else (value, {})
 
     history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
     validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
@@ -71,3 +90,13 @@ def train_pairs(name: str, model: torch.nn.Module, seqs: list, n_train: int, val
 def pools_of(seqs: list, n_train: int, has_val_files: bool) -> list[np.ndarray]:
     """The template pools of split_items (frames a sequence's templates may come from)."""
     return split_items([len(s.segments) for s in seqs], n_train, has_val_files)[2]
+
+
+def load_pairs(load: Callable[[Path, float], object], files: list[Path], val_files: list[Path] | None,
+               min_box_px: float) -> tuple[list, int, list[np.ndarray]]:
+    """(sequences, n_train, template pools): `load(path, min_box_px)` of the training files then the validation
+    files, how many of them are training sequences, and split_items's template pools."""
+    seqs = [load(f, min_box_px) for f in files]
+    n_train = len(seqs)
+    seqs += [load(f, min_box_px) for f in (val_files or [])]
+    return seqs, n_train, pools_of(seqs, n_train, bool(val_files))

@@ -182,6 +182,24 @@ class SiamMask(SiameseNet):
         return self.score(corr), self.box(corr), self.mask(corr)
 
 
+class BoxRegressor(SiameseNet):
+    """GOTURN's split: both crops through one trunk (`backbone`) every frame, their features side by side through
+    fully connected layers (`regressor`) to a box; nothing of the template is computed ahead."""
+
+    backbone: nn.Module
+    regressor: nn.Module
+
+    def template(self, z: torch.Tensor) -> torch.Tensor:
+        """The previous frame's crop, kept as pixels: it changes every frame, so nothing is computed ahead."""
+        return z
+
+    def track(self, cached: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        """Box outputs (B, 4) of previous crops (B, C, S, S) and current crops (B, C, S, S): one trunk pass."""
+        both = self.backbone(torch.cat([cached, x]))
+        b = x.shape[0]
+        return self.regressor(torch.cat([both[:b].flatten(1), both[b:].flatten(1)], dim=1))
+
+
 def caffenet_trunk() -> nn.Sequential:
     """CaffeNet conv1-conv5 with pool5: 227x227 -> 6x6x256 (conv2, conv4, conv5 in two groups)."""
     def conv(cin, cout, k, s=1, p=0, g=1):
@@ -195,7 +213,7 @@ def caffenet_trunk() -> nn.Sequential:
     ]))
 
 
-class GOTURN(SiameseNet):
+class GOTURN(BoxRegressor):
     """GOTURN (Held et al. 2016): both crops through CaffeNet every frame, fc 4096 x 3, 4 box outputs."""
 
     def __init__(self, size: int = 227, hidden: int = 4096):
@@ -208,16 +226,6 @@ class GOTURN(SiameseNet):
             ("fc7b", nn.Linear(hidden, hidden)), ("relu7b", nn.ReLU(inplace=True)),
             ("fc8", nn.Linear(hidden, 4)),
         ]))
-
-    def template(self, z: torch.Tensor) -> torch.Tensor:
-        """The previous frame's crop, kept as pixels: it changes every frame, so nothing is computed ahead."""
-        return z
-
-    def track(self, cached: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-        """Box (B, 4) from the previous crop and the current search crop."""
-        both = self.backbone(torch.cat([cached, x]))
-        b = x.shape[0]
-        return self.regressor(torch.cat([both[:b].flatten(1), both[b:].flatten(1)], dim=1))
 
 
 class Ocean(SiameseNet):

@@ -6,7 +6,9 @@ none is there, the tracker says so in one line and how to train one. A checkpoin
 "<kind>-checkpoint": another model's checkpoint is refused naming the model it holds; missing, damaged or
 non-finite weights and a config the network cannot be built from are refused naming the file). The narrowing of
 each network is measured against the paper-size network of benchmarks.trackers.reference_nets: parameters and
-multiply-accumulates per tracked frame.
+multiply-accumulates per tracked frame. `NetworkTracker` is what their trackers (and SiamFC's) share: the ATSLTD
+frame of a segment, the initial box's check, a tracker on a checkpoint or on a network in memory, and the
+operation counts of a dense network.
 """
 
 from __future__ import annotations
@@ -15,9 +17,13 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from benchmarks.trackers.atsltd import atsltd_frame
+from benchmarks.trackers.base import Tracker
 from dvsot.core.errors import UserError
+from dvsot.dataset import Segment
 
 CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 
@@ -77,3 +83,71 @@ def check_sensor(name: str, width: int, height: int) -> tuple[int, int]:
     if problem:
         raise UserError(problem)
     return int(width), int(height)
+
+
+def dense_counts(frame_macs: float, frame_activations: float, init_macs: float,
+                 init_activations: float) -> tuple[dict, dict]:
+    """(update, init) operations of a dense network (Tracker.energy_per_segment's keys): MACs, their pJ
+    (sctn.energy.E_MAC_PJ a MAC) and ReLU activations; no ACs, no neuron state."""
+    from sctn.energy import E_MAC_PJ
+
+    return ({"ac_ops": 0.0, "mac_ops": frame_macs, "energy_pj": frame_macs * E_MAC_PJ, "state_updates": 0.0,
+             "activations": frame_activations, "evaluations": 1},
+            {"ac_ops": 0.0, "mac_ops": init_macs, "energy_pj": init_macs * E_MAC_PJ, "state_updates": 0.0,
+             "activations": init_activations})
+
+
+class NetworkTracker(Tracker):
+    """A tracker of one network on ATSLTD frames (paper eq. 11, divided by 255): on a checkpoint (`--option
+    NAME.checkpoint`, else the shipped one) or on a network in memory (from_model). Subclasses set `name`,
+    `options_type` (with a `checkpoint` field), `load(path) -> (network, metadata)`, `_start(model, opts)` and
+    `_counts() -> (update, init)` operations."""
+
+    options_type: type
+    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
+
+    @staticmethod
+    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
+        """The network and metadata of a checkpoint of this tracker's model (the subclass's loader)."""
+        raise NotImplementedError
+
+    def __init__(self, **options) -> None:
+        opts = self.options_type(**options)
+        self._start(type(self).load(opts.checkpoint)[0], opts)
+
+    @classmethod
+    def from_model(cls, model: torch.nn.Module, **options) -> NetworkTracker:
+        """The tracker on a network in memory (one being trained, for its validation score); `options` as the
+        options type's less the checkpoint. The network is read, never changed."""
+        opts = cls.options_type(**options)
+        if opts.checkpoint is not None:
+            raise ValueError(f"{cls.name}: a tracker on a given network takes no checkpoint")
+        self = cls.__new__(cls)
+        self._start(model, opts)
+        return self
+
+    def _start(self, model: torch.nn.Module, opts) -> None:
+        raise NotImplementedError
+
+    def _frame(self, segment: Segment) -> np.ndarray:
+        """The segment's ATSLTD frame (height, width) float32 in [0, 1] on the sensor set by init (self.wh)."""
+        window = max(1, int(segment.t1_us) - int(segment.t0_us))
+        return atsltd_frame(segment.events, self.wh[0], self.wh[1], window).astype(np.float32) / 255.0
+
+    def _checked_box(self, box_xywh: np.ndarray) -> np.ndarray:
+        """box_xywh as float64 (4,) px; ValueError naming the tracker if it is absent (NaN) or empty."""
+        box = np.asarray(box_xywh, np.float64).reshape(4)
+        if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
+            raise ValueError(f"{self.name}: cannot initialise on an absent or empty box {box.tolist()}")
+        return box
+
+    def _counts(self) -> tuple[dict, dict]:
+        raise NotImplementedError
+
+    def energy_per_segment(self) -> dict | None:
+        """MACs, pJ (4.6 pJ a MAC) and ReLU activations of one update: dense, the same for every frame."""
+        return self._counts()[0]
+
+    def energy_per_init(self) -> dict | None:
+        """MACs, pJ and activations of one init (what it computes ahead: the template's features, if any)."""
+        return self._counts()[1]

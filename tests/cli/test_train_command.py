@@ -13,7 +13,7 @@ from dvsot.cli import main
 from sctn.checkpoint import load_checkpoint
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from synthetic import moving_square_file  # noqa: E402
+from synthetic import moving_square_file, small_square_file  # noqa: E402
 
 torch.set_num_threads(1)
 TINY = ["--epochs", "1", "--segments-per-epoch", "2", "--batch-segments", "1", "--channels", "2", "2", "2",
@@ -23,17 +23,13 @@ TINY = ["--epochs", "1", "--segments-per-epoch", "2", "--batch-segments", "1", "
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     """A small labelled dataset file (64x48, 60 ms)."""
-    d = tmp_path_factory.mktemp("train_data")
-    return moving_square_file(d / "syn.h5", width=64, height=48, size=12, duration_ms=60,
-                              velocity_px_s=(100.0, 40.0), start=(10.0, 10.0))
+    return small_square_file(tmp_path_factory.mktemp("train_data"))
 
 
 @pytest.fixture
-def no_training(monkeypatch):
+def no_training(refuse_calls):
     """Fail the test if training starts: every refusal must come before any work."""
-    def boom(*args, **kwargs):
-        raise AssertionError("training started")
-    monkeypatch.setattr("sctn.training.snn.train", boom)
+    refuse_calls("sctn.training.snn.train")
 
 
 def snapshot(*dirs: Path) -> dict:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import torch
 
 from benchmarks.trackers import register
+from benchmarks.trackers.automatch.model import load_automatch
 from benchmarks.trackers.ocean.tracker import AnchorFreeTracker
 
 
@@ -16,13 +17,7 @@ class AutoMatchTracker(AnchorFreeTracker):
     """AutoMatch on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "automatch"
-
-    @staticmethod
-    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
-        """The network of an automatch checkpoint."""
-        from benchmarks.trackers.automatch.model import load_automatch
-
-        return load_automatch(path)
+    load = staticmethod(load_automatch)
 
 
 def trained_tracker(model: torch.nn.Module, seed: int) -> AutoMatchTracker:

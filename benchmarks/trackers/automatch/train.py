@@ -10,7 +10,8 @@ from pydantic import Field
 from torch import nn
 
 from benchmarks.trackers.automatch.model import AutoMatch, AutoMatchConfig
-from benchmarks.trackers.ocean.train import PairTrainConfig, train_anchor_free
+from benchmarks.trackers.ocean.train import train_anchor_free
+from benchmarks.trackers.pair_training import PairTrainConfig
 
 
 class AutoMatchTrainConfig(PairTrainConfig):

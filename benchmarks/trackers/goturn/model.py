@@ -30,7 +30,7 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
-from benchmarks.trackers.reference_nets import SiameseNet, conv_bn
+from benchmarks.trackers.reference_nets import BoxRegressor, conv_bn
 
 KIND = "goturn"
 NO_MOTION = (2.5, 2.5, 7.5, 7.5)  # crops.encode of the previous box in its own region (context 2)
@@ -54,8 +54,9 @@ class GOTURNConfig(BaseModel):
         return (s - 3) // 2 + 1
 
 
-class GOTURN(SiameseNet):
-    """forward(previous crops, current crops) (B, 1, S, S) each -> (B, 4) box outputs (crops.encode's form)."""
+class GOTURN(BoxRegressor):
+    """forward(previous crops, current crops) (B, 1, S, S) each -> (B, 4) box outputs (crops.encode's form);
+    template and track as reference_nets.BoxRegressor."""
 
     def __init__(self, cfg: GOTURNConfig | None = None) -> None:
         super().__init__()
@@ -77,16 +78,6 @@ class GOTURN(SiameseNet):
             ("fc8", nn.Linear(h, 4))]))
         with torch.no_grad():  # start at "no motion": the previous box in the middle of the search crop
             self.regressor.fc8.bias.copy_(torch.tensor(NO_MOTION))
-
-    def template(self, z: torch.Tensor) -> torch.Tensor:
-        """The previous frame's crop, kept as pixels: it changes every frame, so nothing is computed ahead."""
-        return z
-
-    def track(self, cached: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-        """Box outputs (B, 4) of previous crops (B, 1, S, S) and current crops (B, 1, S, S): one trunk pass."""
-        both = self.backbone(torch.cat([cached, x]))
-        b = x.shape[0]
-        return self.regressor(torch.cat([both[:b].flatten(1), both[b:].flatten(1)], dim=1))
 
 
 def load_goturn(path: str | os.PathLike | None = None) -> tuple[GOTURN, dict]:

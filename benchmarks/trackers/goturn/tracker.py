@@ -13,11 +13,9 @@ import numpy as np
 import torch
 
 from benchmarks.trackers import register
-from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.goturn.crops import crop_region, decode, region
-from benchmarks.trackers.goturn.model import GOTURN
-from benchmarks.trackers.trained_here import check_sensor, sensor_problem
+from benchmarks.trackers.goturn.model import GOTURN, load_goturn
+from benchmarks.trackers.trained_here import NetworkTracker, check_sensor, dense_counts, sensor_problem
 from dvsot.core.strict import Strict
 from dvsot.dataset import Segment
 
@@ -31,44 +29,26 @@ class GOTURNOptions(Strict):
 
 
 @register("goturn")
-class GOTURNTracker(Tracker):
+class GOTURNTracker(NetworkTracker):
     """GOTURN on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "goturn"
-    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
+    options_type = GOTURNOptions
+    load = staticmethod(load_goturn)
 
-    def __init__(self, **options) -> None:
-        from benchmarks.trackers.goturn.model import load_goturn
-
-        opts = GOTURNOptions(**options)
-        self._start(load_goturn(opts.checkpoint)[0])
-
-    @classmethod
-    def from_model(cls, model: GOTURN) -> GOTURNTracker:
-        """The tracker on a network in memory (one being trained); the network is read, never changed."""
-        self = cls.__new__(cls)
-        self._start(model)
-        return self
-
-    def _start(self, model: GOTURN) -> None:
+    def _start(self, model: GOTURN, opts: GOTURNOptions) -> None:
         self.model = model
         self.prev_frame: np.ndarray | None = None
-        self._macs: dict | None = None
+        self._macs: tuple[dict, dict] | None = None
 
     @classmethod
     def frame_problem(cls, width: int, height: int) -> str | None:
         """Why this tracker cannot take frames of width x height px, or None (checked before a run)."""
         return sensor_problem("goturn", width, height)
 
-    def _frame(self, segment: Segment) -> np.ndarray:
-        window = max(1, int(segment.t1_us) - int(segment.t0_us))
-        return atsltd_frame(segment.events, self.wh[0], self.wh[1], window).astype(np.float32) / 255.0
-
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
         """The init segment's frame and box_xywh (pixels) become the previous frame and box."""
-        box = np.asarray(box_xywh, np.float64).reshape(4)
-        if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
-            raise ValueError(f"goturn: cannot initialise on an absent or empty box {box.tolist()}")
+        box = self._checked_box(box_xywh)
         self.wh = check_sensor("goturn", width, height)
         self.prev_frame, self.box = self._frame(segment), box.copy()
 
@@ -95,25 +75,15 @@ class GOTURNTracker(Tracker):
         """(update, init) operations, counted once: MACs (both crops through the trunk, the regressor), pJ and
         ReLU activations; an init computes nothing."""
         if self._macs is None:
-            from sctn.energy import E_MAC_PJ, count_activations
+            from sctn.energy import count_activations
             from sctn.macs import count_macs
 
             s = self.model.cfg.size
             z = torch.zeros(1, 1, s, s)
             macs = count_macs(lambda xs: self.model.track(z, xs), z.clone(), root=self.model)["mac_ops"]
             acts = count_activations(lambda xs: self.model.track(z, xs), z.clone())
-            self._macs = ({"ac_ops": 0.0, "mac_ops": macs, "energy_pj": macs * E_MAC_PJ, "state_updates": 0.0,
-                           "activations": acts, "evaluations": 1},
-                          {"ac_ops": 0.0, "mac_ops": 0.0, "energy_pj": 0.0, "state_updates": 0.0, "activations": 0.0})
+            self._macs = dense_counts(macs, acts, 0.0, 0.0)
         return self._macs
-
-    def energy_per_segment(self) -> dict | None:
-        """MACs and pJ (4.6 pJ per MAC) of one update: dense, the same for every frame."""
-        return self._counts()[0]
-
-    def energy_per_init(self) -> dict | None:
-        """An init keeps the frame and box: no operations."""
-        return self._counts()[1]
 
 
 def validation_tracker(model: GOTURN, seed: int) -> GOTURNTracker:

@@ -20,7 +20,7 @@ from torch.nn import functional as F
 
 from benchmarks.trackers.goturn.crops import crop_region, encode, region, shifted_box
 from benchmarks.trackers.goturn.model import GOTURN, GOTURNConfig
-from benchmarks.trackers.pair_training import train_pairs
+from benchmarks.trackers.pair_training import load_pairs, train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames
 from dvsot.core.bounds import MAX_LEARNING_RATE
 from sctn.training.loop import TrainBudget
@@ -72,9 +72,7 @@ def train_goturn(files: list[Path], cfg: GOTURNTrainConfig, progress: bool = Tru
     """Train a new GOTURN on the given dataset files; returns the model and a history of metrics (validation: L1
     loss, IoU of the predicted box in the search crop, and the centre error in crop px)."""
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
+    seqs, n_train, _ = load_pairs(load_frames, files, val_files, cfg.min_box_px)
 
     def batch(items: list, rng: np.random.Generator) -> tuple:
         zs, xs, ys = [], [], []
@@ -98,6 +96,6 @@ def train_goturn(files: list[Path], cfg: GOTURNTrainConfig, progress: bool = Tru
         err = np.hypot((o[:, 0] + o[:, 2] - y[:, 0] - y[:, 2]) / 2, (o[:, 1] + o[:, 3] - y[:, 1] - y[:, 3]) / 2) * px
         return {"loss": value, "iou": float(iou_xyxy(o, y).mean()), "centre_error_px": float(err.mean())}
 
-    return train_pairs("goturn", GOTURN(cfg.network), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+    return train_pairs("goturn", lambda: GOTURN(cfg.network), seqs, n_train, val_files, cfg, batch, loss, evaluate,
                        lambda m: f"val loss {m['loss']:.4f} iou {m['iou']:.2f} centre error "
                                  f"{m['centre_error_px']:.1f} px", progress, val_score)

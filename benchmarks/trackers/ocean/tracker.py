@@ -19,13 +19,13 @@ import torch
 from pydantic import Field
 
 from benchmarks.trackers import register
-from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.ocean.boxes import decode, locations
 from benchmarks.trackers.ocean.crops import box_in_crop
-from benchmarks.trackers.ocean.model import TOTAL_STRIDE
+from benchmarks.trackers.ocean.model import TOTAL_STRIDE, load_ocean
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamfc.tracker import hann_window
+from benchmarks.trackers.siamrpn.tracker import select
+from benchmarks.trackers.trained_here import NetworkTracker, dense_counts
 from dvsot.core.errors import UserError
 from dvsot.core.strict import Float, Strict
 from dvsot.dataset import Segment
@@ -43,41 +43,11 @@ class AnchorFreeOptions(Strict):
     ratio: Float = Field(0.5, ge=0, le=1)
 
 
-def change(r: np.ndarray) -> np.ndarray:
-    """max(r, 1 / r): how far a ratio is from 1 either way."""
-    return np.maximum(r, 1.0 / r)
-
-
-def padded_size(w: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """SiamRPN's size measure sqrt((w + p)(h + p)), p = (w + h) / 2."""
-    p = (w + h) / 2
-    return np.sqrt((w + p) * (h + p))
-
-
-class AnchorFreeTracker(Tracker):
+class AnchorFreeTracker(NetworkTracker):
     """Siamese anchor-free tracking on ATSLTD frames; subclasses set `name` and `load(path) -> (model, meta)`."""
 
     name = "anchor_free"
-    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
-
-    @staticmethod
-    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
-        """The network of a checkpoint (the subclass's loader)."""
-        raise NotImplementedError
-
-    def __init__(self, **options) -> None:
-        opts = AnchorFreeOptions(**options)
-        self._start(type(self).load(opts.checkpoint)[0], opts)
-
-    @classmethod
-    def from_model(cls, model: torch.nn.Module, **options) -> AnchorFreeTracker:
-        """The tracker on a network in memory (one being trained); the network is read, never changed."""
-        opts = AnchorFreeOptions(**options)
-        if opts.checkpoint is not None:
-            raise ValueError(f"{cls.name}: a tracker on a given network takes no checkpoint")
-        self = cls.__new__(cls)
-        self._start(model, opts)
-        return self
+    options_type = AnchorFreeOptions
 
     def _start(self, model: torch.nn.Module, opts: AnchorFreeOptions) -> None:
         self.model, self.opts = model, opts
@@ -87,17 +57,11 @@ class AnchorFreeTracker(Tracker):
         self.cached = None
         self._macs: tuple[dict, dict] | None = None
 
-    def _frame(self, segment: Segment) -> np.ndarray:
-        window = max(1, int(segment.t1_us) - int(segment.t0_us))
-        return atsltd_frame(segment.events, self.wh[0], self.wh[1], window).astype(np.float32) / 255.0
-
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Template kernels from the init segment's frame around box_xywh (pixels)."""
-        box = np.asarray(box_xywh, np.float64).reshape(4)
         if int(width) < 1 or int(height) < 1:
             raise UserError(f"{self.name}: a {width}x{height} px frame is no frame the network can take")
-        if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
-            raise ValueError(f"{self.name}: cannot initialise on an absent or empty box {box.tolist()}")
+        box = self._checked_box(box_xywh)
         self.wh = (int(width), int(height))
         self.centre = box[:2] + box[2:] / 2
         self.size = box[2:].copy()
@@ -122,13 +86,8 @@ class AnchorFreeTracker(Tracker):
         scale = cfg.search_size / x_ext  # crop px per sensor px
         w = np.maximum(boxes[2] - boxes[0], 1e-3)
         h = np.maximum(boxes[3] - boxes[1], 1e-3)
-        tw, th = self.size * scale
-        s_c = change(padded_size(w, h) / padded_size(tw, th))
-        r_c = change((tw / th) / (w / h))
-        penalty = np.exp(-(r_c * s_c - 1) * self.opts.penalty_k)
-        pscore = penalty * score
-        wi = self.opts.window_influence
-        best = int(np.argmax(pscore * (1 - wi) + self.window * wi))
+        best, penalty = select(score, np.stack([w, h]), self.size * scale, self.window, self.opts.penalty_k,
+                               self.opts.window_influence)
         b = boxes[:, best]
         self.centre = np.clip(self.centre + ((b[:2] + b[2:]) / 2 - cfg.search_size / 2) / scale, 0, self.wh)
         lr = penalty[best] * score[best] * self.opts.lr
@@ -138,7 +97,7 @@ class AnchorFreeTracker(Tracker):
     def _counts(self) -> tuple[dict, dict]:
         """(update, init) operations, counted once on the layers that run: MACs and ReLU activations."""
         if self._macs is None:
-            from sctn.energy import E_MAC_PJ, count_activations, count_macs
+            from sctn.energy import count_activations, count_macs
 
             cfg = self.model.cfg
             z = torch.zeros(1, 1, cfg.exemplar_size, cfg.exemplar_size)
@@ -151,19 +110,8 @@ class AnchorFreeTracker(Tracker):
             init = count_macs(lambda zs: self.model.template(zs, z_box), z)["mac_ops"]
             acts = count_activations(lambda xs: self.model.track(cached, xs), x)
             init_acts = count_activations(lambda zs: self.model.template(zs, z_box), z)
-            self._macs = ({"ac_ops": 0.0, "mac_ops": frame, "energy_pj": frame * E_MAC_PJ, "state_updates": 0.0,
-                           "activations": acts, "evaluations": 1},
-                          {"ac_ops": 0.0, "mac_ops": init, "energy_pj": init * E_MAC_PJ, "state_updates": 0.0,
-                           "activations": init_acts})
+            self._macs = dense_counts(frame, acts, init, init_acts)
         return self._macs
-
-    def energy_per_segment(self) -> dict | None:
-        """MACs and pJ (4.6 pJ per MAC) of one update (the search branch and heads), and its activations."""
-        return self._counts()[0]
-
-    def energy_per_init(self) -> dict | None:
-        """MACs, pJ and activations of one init: the template branch."""
-        return self._counts()[1]
 
 
 @register("ocean")
@@ -171,13 +119,7 @@ class OceanTracker(AnchorFreeTracker):
     """Ocean on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "ocean"
-
-    @staticmethod
-    def load(path: str | None) -> tuple[torch.nn.Module, dict]:
-        """The network of an ocean checkpoint."""
-        from benchmarks.trackers.ocean.model import load_ocean
-
-        return load_ocean(path)
+    load = staticmethod(load_ocean)
 
 
 def trained_tracker(model: torch.nn.Module, seed: int) -> OceanTracker:

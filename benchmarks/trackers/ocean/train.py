@@ -24,22 +24,9 @@ from torch.nn import functional as F
 from benchmarks.trackers.ocean.boxes import assign, decode, iou_loss, locations
 from benchmarks.trackers.ocean.crops import pair_crops
 from benchmarks.trackers.ocean.model import TOTAL_STRIDE, Ocean, OceanConfig
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
-
-
-class PairTrainConfig(TrainBudget):
-    """Settings of a Siamese anchor-free training: TrainBudget's, the pairs' gap and augmentation."""
-
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
-    batch_segments: int = Field(8, ge=1)  # pairs per step
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)  # segments between template and search
-    shift_px: float = Field(32.0, ge=0)
-    stretch: float = Field(0.05, ge=0)
 
 
 class OceanTrainConfig(PairTrainConfig):
@@ -94,51 +81,26 @@ def train_anchor_free(build: Callable[[], nn.Module], name: str, files: list[Pat
                       val_score: Callable[[nn.Module], dict] | None = None) -> tuple[nn.Module, dict]:
     """Train a new network `build()` (Ocean's interface: forward(z, x, z_box) -> distances, logits, object-aware
     logits) on the dataset files; the model and its history (validation as in SiamFC's training)."""
-    rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
-    train_items, val_items, pools = [], [], []
-    for s, fr in enumerate(seqs):
-        everything = np.arange(len(fr.segments))
-        if s >= n_train:
-            pools.append(everything)
-            val_items += [(s, int(k)) for k in everything]
-            continue
-        fit_ks, val_ks = (everything, everything[:0]) if val_files else held_out(everything)
-        pools.append(fit_ks)
-        val_items += [(s, int(k)) for k in val_ks]
-        train_items += [(s, int(k)) for k in fit_ks]
-    if not train_items:
-        raise ValueError("no training segments with a ground-truth box")
-    cfg.check_steps(len(train_items))
-    if val_files and not val_items:
-        raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
-    model = build()
-    net = model.cfg
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    val_rng = np.random.default_rng(cfg.seed + 1)
-    val_pick = spread(val_items, cfg.val_segments)
-    val_batch = None
-    if val_pick:
-        items = [(s, partner(val_rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in val_pick]
-        val_batch = make_batch(items, seqs, val_rng, net, cfg.shift_px, cfg.stretch)
+    seqs, n_train, pools = load_pairs(load_frames, files, val_files, cfg.min_box_px)
+    model: nn.Module | None = None  # the network build() makes (after the data's checks): its config sizes the crops
 
-    def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
+    def built() -> nn.Module:
+        nonlocal model
+        model = build()
+        return model
+
+    def batch(picks: list, rng: np.random.Generator) -> tuple[torch.Tensor, ...]:
         items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
-        z, x, bx, bz = make_batch(items, seqs, rng, net, cfg.shift_px, cfg.stretch)
-        return anchor_free_loss(model(z, x, bz), bx, net.search_size)
+        return make_batch(items, seqs, rng, model.cfg, cfg.shift_px, cfg.stretch)
 
-    history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
-    validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
-    history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
-                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px" + score_note(m),
-                  history, progress, f"train {name}")
-    if val_batch is not None:
-        validate.score_last()
-    history.update(train_segments=len(train_items), val_segments=len(val_pick))
-    return model, history
+    def loss(net: nn.Module, b: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, dict]:
+        z, x, bx, bz = b
+        return anchor_free_loss(net(z, x, bz), bx, net.cfg.search_size)
+
+    return train_pairs(name, built, seqs, n_train, val_files, cfg, batch, loss, evaluate,
+                       lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px", progress,
+                       val_score)
 
 
 def train_ocean(files: list[Path], cfg: OceanTrainConfig, progress: bool = True, val_files: list[Path] | None = None,

@@ -17,10 +17,9 @@ import torch
 from pydantic import Field
 
 from benchmarks.trackers import register
-from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
-from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC
+from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, load_siamfc
+from benchmarks.trackers.trained_here import NetworkTracker, dense_counts
 from dvsot.core.strict import Float, Int, Strict
 from dvsot.dataset import Segment
 
@@ -69,28 +68,12 @@ def frame_macs(model: SiamFC, scale_num: int = 3, response_up: int = 16) -> dict
 
 
 @register("siamfc")
-class SiamFCTracker(Tracker):
+class SiamFCTracker(NetworkTracker):
     """SiamFC on ATSLTD frames with the weights trained here (shipped checkpoint by default)."""
 
     name = "siamfc"
-    operations = ("mac_ops", "activations")
-
-    def __init__(self, **options) -> None:
-        from benchmarks.trackers.siamfc.model import load_siamfc
-
-        opts = SiamFCOptions(**options)
-        self._start(load_siamfc(opts.checkpoint)[0], opts)
-
-    @classmethod
-    def from_model(cls, model: SiamFC, **options) -> SiamFCTracker:
-        """The tracker on a network in memory (one being trained, for its validation score); `options` as
-        SiamFCOptions less the checkpoint. The network is read, never changed."""
-        opts = SiamFCOptions(**options)
-        if opts.checkpoint is not None:
-            raise ValueError("siamfc: a tracker on a given network takes no checkpoint")
-        self = cls.__new__(cls)
-        self._start(model, opts)
-        return self
+    options_type = SiamFCOptions
+    load = staticmethod(load_siamfc)
 
     def _start(self, model: SiamFC, opts: SiamFCOptions) -> None:
         self.opts = opts
@@ -101,17 +84,11 @@ class SiamFCTracker(Tracker):
         self.scales = self.opts.scale_step ** (np.arange(n) - (n - 1) / 2)
         self.window = hann_window(self.model.cfg.response_size() * self.opts.response_up)
         self.z_feat: torch.Tensor | None = None
-        self._macs: dict | None = None
-
-    def _frame(self, segment: Segment) -> np.ndarray:
-        window = max(1, int(segment.t1_us) - int(segment.t0_us))
-        return atsltd_frame(segment.events, self.wh[0], self.wh[1], window).astype(np.float32) / 255.0
+        self._macs: tuple[dict, dict] | None = None
 
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Exemplar features from the init segment's frame around box_xywh (pixels)."""
-        box = np.asarray(box_xywh, np.float64).reshape(4)
-        if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
-            raise ValueError(f"siamfc: cannot initialise on an absent or empty box {box.tolist()}")
+        box = self._checked_box(box_xywh)
         self.wh = (int(width), int(height))
         self.centre = box[:2] + box[2:] / 2
         self.size = box[2:].copy()
@@ -161,22 +138,11 @@ class SiamFCTracker(Tracker):
     def _counts(self) -> tuple[dict, dict]:
         """(update, init) operations, counted once on the layers: MACs and ReLU activations."""
         if self._macs is None:
-            from sctn.energy import E_MAC_PJ, count_activations
+            from sctn.energy import count_activations
 
             m, cfg = self.frame_macs(), self.model.cfg
             acts = count_activations(self.model.features, torch.zeros(len(self.scales), 1, cfg.search_size,
                                                                       cfg.search_size))
             init_acts = count_activations(self.model.features, torch.zeros(1, 1, cfg.exemplar_size, cfg.exemplar_size))
-            self._macs = ({"ac_ops": 0.0, "mac_ops": m["mac_ops"], "energy_pj": m["mac_ops"] * E_MAC_PJ,
-                           "state_updates": 0.0, "activations": acts, "evaluations": 1},
-                          {"ac_ops": 0.0, "mac_ops": m["init_mac_ops"], "energy_pj": m["init_mac_ops"] * E_MAC_PJ,
-                           "state_updates": 0.0, "activations": init_acts})
+            self._macs = dense_counts(m["mac_ops"], acts, m["init_mac_ops"], init_acts)
         return self._macs
-
-    def energy_per_segment(self) -> dict | None:
-        """MACs and pJ (4.6 pJ per MAC) of one update, and its activations: dense, the same for every frame."""
-        return self._counts()[0]
-
-    def energy_per_init(self) -> dict | None:
-        """MACs, pJ and activations of one init: the exemplar's features (no fine-tuning)."""
-        return self._counts()[1]

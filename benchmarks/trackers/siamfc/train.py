@@ -25,23 +25,16 @@ from pydantic import Field
 from torch.nn import functional as F
 
 from benchmarks.trackers.atsltd import atsltd_frame
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.crops import balanced_weights, crop, exemplar_extent, response_labels
 from benchmarks.trackers.siamfc.model import TOTAL_STRIDE, SiamFC, SiamFCConfig
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget, Validation, fit, held_out, score_note, spread
 
 
-class SiamFCTrainConfig(TrainBudget):
-    """SiamFC training settings: TrainBudget's (pairs: one search segment each, optimiser, budget) with SiamFC's
-    defaults, the pairs' gap and augmentation, the label radius and the network."""
+class SiamFCTrainConfig(PairTrainConfig):
+    """SiamFC training settings: PairTrainConfig's (pairs: one search segment each, optimiser, budget, gap and
+    augmentation) with SiamFC's shift, the label radius and the network."""
 
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)  # search segments (training pairs) per epoch
-    batch_segments: int = Field(8, ge=1)  # pairs per step
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)  # segments between exemplar and search
     shift_px: float = Field(8.0, ge=0)
-    stretch: float = Field(0.05, ge=0)
     radius_px: float = Field(16.0, ge=0)
     network: SiamFCConfig = Field(default_factory=SiamFCConfig)
 
@@ -148,47 +141,18 @@ def train_siamfc(files: list[Path], cfg: SiamFCTrainConfig, progress: bool = Tru
     trains), else over every 10th usable segment of the training files (held out). Each entry of history["val"]
     has the loss, the mean centre error (px) and the mean training loss since the previous entry; `val_score(model)`
     is added every cfg.val_arscore_every steps and at the end."""
-    rng = np.random.default_rng(cfg.seed)
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
-    train_items, val_items, pools = [], [], []
-    for s, fr in enumerate(seqs):
-        everything = np.arange(len(fr.segments))
-        if s >= n_train:  # a validation sequence: its exemplars are its own segments
-            pools.append(everything)
-            val_items += [(s, int(k)) for k in everything]
-            continue
-        fit_ks, val_ks = (everything, everything[:0]) if val_files else held_out(everything)
-        pools.append(fit_ks)  # exemplars come from training segments only
-        val_items += [(s, int(k)) for k in val_ks]
-        train_items += [(s, int(k)) for k in fit_ks]
-    if not train_items:
-        raise ValueError("no training segments with a ground-truth box")
-    cfg.check_steps(len(train_items))  # before the model is built or calibrated
-    if val_files and not val_items:
-        raise ValueError(f"{', '.join(map(str, val_files))}: no validation segments with a ground-truth box")
-    model = SiamFC(cfg.network)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    val_rng = np.random.default_rng(cfg.seed + 1)
-    val_pick = spread(val_items, cfg.val_segments)
-    val_batch = None
-    if val_pick:
-        items = [(s, partner(val_rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in val_pick]
-        val_batch = make_batch(items, seqs, val_rng, cfg)
+    # exemplars come from training segments only
+    seqs, n_train, pools = load_pairs(load_frames, files, val_files, cfg.min_box_px)
 
-    def step_loss(picks: list) -> tuple[torch.Tensor, dict]:
+    def batch(picks: list, rng: np.random.Generator) -> tuple[torch.Tensor, ...]:
         items = [(s, partner(rng, seqs[s], k, cfg.max_gap, pools[s]), k) for s, k in picks]
-        z, x, labels, weights = make_batch(items, seqs, rng, cfg)
-        return logistic_loss(model(z, x), labels, weights), {}
+        return make_batch(items, seqs, rng, cfg)
 
-    history: dict = {"train_loss": [], "val": [], "validation": "files" if val_files else "held_out"}
-    validate = Validation(model, cfg, history, lambda: evaluate(model, val_batch), val_score)
-    history = fit(model, opt, train_items, cfg, rng, step_loss, validate if val_batch is not None else None,
-                  lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px" + score_note(m),
-                  history, progress, "train siamfc")
-    if val_batch is not None:
-        validate.score_last()
-    history.update(train_segments=len(train_items), val_segments=len(val_pick))
-    return model, history
+    def loss(model: SiamFC, b: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        z, x, labels, weights = b
+        return logistic_loss(model(z, x), labels, weights)
+
+    return train_pairs("siamfc", lambda: SiamFC(cfg.network), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+                       lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px", progress,
+                       val_score)

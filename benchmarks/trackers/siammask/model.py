@@ -22,8 +22,8 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from benchmarks.trackers.reference_nets import SiameseNet, conv_bn, depthwise_xcorr
-from benchmarks.trackers.siamrpn.model import SiamRPNConfig, alexnet_trunk
+from benchmarks.trackers.reference_nets import conv_bn, depthwise_xcorr
+from benchmarks.trackers.siamrpn.model import AnchoredNet, SiamRPNConfig, anchored_narrowing
 
 KIND = "siammask"
 NARROWING = ("trunk AlexNet/4 (24-64-96-96-64) for ResNet-50, branches 64 channels, mask 31x31, "
@@ -53,17 +53,13 @@ class DepthCorr(nn.Module):
         return self.head(corr)
 
 
-class SiamMask(SiameseNet):
+class SiamMask(AnchoredNet):
     """Trunk + three depth-wise branches; template(z) -> kernels, track(kernels, x) -> (scores, offsets, masks)."""
 
     def __init__(self, cfg: SiamMaskConfig | None = None) -> None:
-        super().__init__()
-        self.cfg = cfg = cfg or SiamMaskConfig()
-        if cfg.feature_size(cfg.exemplar_size) < 3 or cfg.score_size() < 1:
-            raise ValueError(f"exemplar {cfg.exemplar_size} px and search {cfg.search_size} px give no score map")
-        self.template_size, self.search_size, self.k = cfg.exemplar_size, cfg.search_size, len(cfg.ratios)
+        super().__init__(cfg or SiamMaskConfig())
+        cfg = self.cfg
         c, h = cfg.channels[-1], cfg.head_channels
-        self.backbone = alexnet_trunk(cfg.channels)
         self.score = DepthCorr(c, h, 2 * self.k)
         self.box = DepthCorr(c, h, 4 * self.k)
         self.mask = DepthCorr(c, h, cfg.mask_side ** 2)
@@ -93,8 +89,5 @@ def narrowing(cfg: SiamMaskConfig | None = None) -> dict:
     """The narrowing's name and its measure: parameters and MACs per frame against the paper's SiamMask (three
     branches, ResNet-50) at the same crop sizes."""
     from benchmarks.trackers.reference_nets import SiamMask as Reference
-    from benchmarks.trackers.trained_here import narrowing as measure
 
-    cfg = cfg or SiamMaskConfig()
-    ref = Reference(search_size=cfg.search_size, template_size=cfg.exemplar_size, anchors=len(cfg.ratios))
-    return {"narrowing": NARROWING, **measure(SiamMask(cfg), ref)}
+    return anchored_narrowing(SiamMask(cfg), Reference, NARROWING)

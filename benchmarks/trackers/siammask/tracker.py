@@ -18,7 +18,7 @@ from pydantic import Field
 
 from benchmarks.trackers import register
 from benchmarks.trackers.siammask.masks import mask_box, window_centre, window_probabilities
-from benchmarks.trackers.siammask.model import SiamMask
+from benchmarks.trackers.siammask.model import SiamMask, load_siammask
 from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
 from benchmarks.trackers.siamrpn.tracker import RPNTracker
 from dvsot.core.strict import Float, Strict
@@ -41,15 +41,8 @@ class SiamMaskTracker(RPNTracker):
     """SiamMask on ATSLTD frames with weights trained here (--checkpoint, else the shipped one)."""
 
     name = "siammask"
-    kind = "siammask"
     options_type = SiamMaskOptions
-
-    @staticmethod
-    def load(path):
-        """The network and metadata of a siammask checkpoint."""
-        from benchmarks.trackers.siammask.model import load_siammask
-
-        return load_siammask(path)
+    load = staticmethod(load_siammask)
 
     def update(self, segment: Segment) -> np.ndarray:
         """The box (xywh pixels) at the end of this segment: the predicted mask's rectangle."""

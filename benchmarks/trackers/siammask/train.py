@@ -20,14 +20,14 @@ import torch
 from pydantic import Field
 from torch.nn import functional as F
 
-from benchmarks.trackers.pair_training import pools_of, train_pairs
+from benchmarks.trackers.pair_training import load_pairs, train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from benchmarks.trackers.siammask.masks import mask_targets
 from benchmarks.trackers.siammask.model import SiamMask, SiamMaskConfig
 from benchmarks.trackers.siamrpn.anchors import make_anchors
 from benchmarks.trackers.siamrpn.crops import search_crop, search_window, template_crop
 from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE
-from benchmarks.trackers.siamrpn.train import SiamRPNTrainConfig, best_boxes, box_iou_cxcywh, rpn_loss, rpn_targets
+from benchmarks.trackers.siamrpn.train import SiamRPNTrainConfig, box_figures, rpn_loss, rpn_targets
 
 
 class SiamMaskTrainConfig(SiamRPNTrainConfig):
@@ -96,10 +96,7 @@ def train_siammask(files: list[Path], cfg: SiamMaskTrainConfig, progress: bool =
     """Train a new SiamMask on the given dataset files; returns the model and a history of metrics (validation:
     loss, centre error px and IoU of the top-scoring anchor's box, mask loss)."""
     torch.manual_seed(cfg.seed)
-    seqs = [load_masked(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_masked(f, cfg.min_box_px) for f in (val_files or [])]
-    pools = pools_of(seqs, n_train, bool(val_files))
+    seqs, n_train, pools = load_pairs(load_masked, files, val_files, cfg.min_box_px)
     net = cfg.network
     r = net.score_size()
     anchors = make_anchors(r, TOTAL_STRIDE, net.ratios, net.anchor_scale)
@@ -133,13 +130,11 @@ def train_siammask(files: list[Path], cfg: SiamMaskTrainConfig, progress: bool =
     def evaluate(model: SiamMask, b: tuple) -> dict:
         with torch.no_grad():
             rpn, mask, out = losses(model, b)
-        found = best_boxes(out[0], out[1], anchors)
-        err = np.hypot(*(found[:, :2] - b[5][:, :2]).T)
         return {"loss": float(rpn + cfg.mask_weight * mask), "mask_loss": float(mask),
-                "centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, b[5]).mean())}
+                **box_figures(out[0], out[1], anchors, b[5])}
 
     model, history = train_pairs(
-        "siammask", SiamMask(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+        "siammask", lambda: SiamMask(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
         lambda m: f"val loss {m['loss']:.4f} mask {m['mask_loss']:.4f} centre error {m['centre_error_px']:.1f} px",
         progress, val_score)
     history["mask_sources"] = {str(f): s.source for f, s in zip(list(files) + list(val_files or []), seqs)}

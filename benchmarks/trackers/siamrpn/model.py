@@ -77,17 +77,36 @@ class SiamRPNConfig(TrunkConfig):
         return self.feature_size(self.search_size) - self.feature_size(self.exemplar_size) + 1
 
 
-class SiamRPN(SiameseNet):
-    """Trunk + up-channel RPN head; template(z) -> kernels, track(kernels, x) -> (scores, offsets)."""
+class AnchoredNet(SiameseNet):
+    """The AlexNet trunk and k anchors per score cell that SiamRPN and SiamMask share; subclasses add the heads
+    after it (the trunk's weights are drawn first)."""
 
-    def __init__(self, cfg: SiamRPNConfig | None = None) -> None:
+    def __init__(self, cfg: SiamRPNConfig) -> None:
         super().__init__()
-        self.cfg = cfg = cfg or SiamRPNConfig()
+        self.cfg = cfg
         if cfg.feature_size(cfg.exemplar_size) < 3 or cfg.score_size() < 1:
             raise ValueError(f"exemplar {cfg.exemplar_size} px and search {cfg.search_size} px give no score map")
         self.template_size, self.search_size, self.k = cfg.exemplar_size, cfg.search_size, len(cfg.ratios)
-        c, h = cfg.channels[-1], cfg.head_channels
         self.backbone = alexnet_trunk(cfg.channels)
+
+
+def anchored_narrowing(net: AnchoredNet, reference: type[SiameseNet], name: str) -> dict:
+    """The narrowing's name and its measure (trained_here.narrowing) of `net` against the paper's network
+    `reference` built at the same crop sizes and number of anchors."""
+    from benchmarks.trackers.trained_here import narrowing as measure
+
+    cfg = net.cfg
+    ref = reference(search_size=cfg.search_size, template_size=cfg.exemplar_size, anchors=len(cfg.ratios))
+    return {"narrowing": name, **measure(net, ref)}
+
+
+class SiamRPN(AnchoredNet):
+    """Trunk + up-channel RPN head; template(z) -> kernels, track(kernels, x) -> (scores, offsets)."""
+
+    def __init__(self, cfg: SiamRPNConfig | None = None) -> None:
+        super().__init__(cfg or SiamRPNConfig())
+        cfg = self.cfg
+        c, h = cfg.channels[-1], cfg.head_channels
         self.cls_z = nn.Conv2d(c, h * 2 * self.k, 3)
         self.reg_z = nn.Conv2d(c, h * 4 * self.k, 3)
         self.cls_x = nn.Conv2d(c, h, 3)
@@ -122,8 +141,5 @@ def narrowing(cfg: SiamRPNConfig | None = None) -> dict:
     """The narrowing's name and its measure: parameters and MACs per frame against the paper's SiamRPN at the
     same crop sizes."""
     from benchmarks.trackers.reference_nets import SiamRPN as Reference
-    from benchmarks.trackers.trained_here import narrowing as measure
 
-    cfg = cfg or SiamRPNConfig()
-    ref = Reference(search_size=cfg.search_size, template_size=cfg.exemplar_size, anchors=len(cfg.ratios))
-    return {"narrowing": NARROWING, **measure(SiamRPN(cfg), ref)}
+    return anchored_narrowing(SiamRPN(cfg), Reference, NARROWING)

@@ -17,12 +17,10 @@ import torch
 from pydantic import Field
 
 from benchmarks.trackers import register
-from benchmarks.trackers.atsltd import atsltd_frame
-from benchmarks.trackers.base import Tracker
 from benchmarks.trackers.siamfc.crops import crop, exemplar_extent
 from benchmarks.trackers.siamrpn.anchors import decode, make_anchors
-from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN
-from benchmarks.trackers.trained_here import check_sensor, sensor_problem
+from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN, load_siamrpn
+from benchmarks.trackers.trained_here import NetworkTracker, check_sensor, dense_counts, sensor_problem
 from dvsot.core.strict import Float, Strict
 from dvsot.dataset import Segment
 
@@ -49,45 +47,24 @@ def context_size(w: np.ndarray, h: np.ndarray) -> np.ndarray:
     return np.sqrt((w + p) * (h + p))
 
 
-def select(score: np.ndarray, boxes: np.ndarray, size_crop: np.ndarray, window: np.ndarray, penalty_k: float,
+def select(score: np.ndarray, sizes: np.ndarray, size_crop: np.ndarray, window: np.ndarray, penalty_k: float,
            window_influence: float) -> tuple[int, np.ndarray]:
-    """SiamRPN's proposal selection: the index of the best of the flat proposals (score (N,), boxes (4, N) crop
-    px) for a target of size_crop (w, h crop px), and the scale/aspect penalty of every proposal."""
-    s_c = change(context_size(boxes[2], boxes[3]) / context_size(size_crop[0], size_crop[1]))
-    r_c = change((size_crop[0] / size_crop[1]) / (boxes[2] / boxes[3]))
+    """SiamRPN's proposal selection (Ocean's too): the index of the best of the flat proposals (score (N,), sizes
+    (2, N) w, h crop px) for a target of size_crop (w, h crop px), and the scale/aspect penalty of every proposal."""
+    s_c = change(context_size(sizes[0], sizes[1]) / context_size(size_crop[0], size_crop[1]))
+    r_c = change((size_crop[0] / size_crop[1]) / (sizes[0] / sizes[1]))
     penalty = np.exp(-(r_c * s_c - 1.0) * penalty_k)
     pscore = penalty * score * (1 - window_influence) + window * window_influence
     return int(np.argmax(pscore)), penalty
 
 
-class RPNTracker(Tracker):
+class RPNTracker(NetworkTracker):
     """The RPN trackers' state and step (SiamRPN; SiamMask adds the mask): subclasses give the network and
     `outputs(x)` -> (scores (2, k, R, R), offsets (4, k, R, R)) of one search crop."""
 
-    kind = "siamrpn"
+    name = "siamrpn"
     options_type: type = SiamRPNOptions
-    operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
-
-    def __init__(self, **options) -> None:
-        opts = self.options_type(**options)
-        self._start(self.load(opts.checkpoint)[0], opts)
-
-    @staticmethod
-    def load(path):
-        """The network and metadata of a checkpoint of this tracker's model."""
-        from benchmarks.trackers.siamrpn.model import load_siamrpn
-
-        return load_siamrpn(path)
-
-    @classmethod
-    def from_model(cls, model: torch.nn.Module, **options) -> RPNTracker:
-        """The tracker on a network in memory (one being trained); the network is read, never changed."""
-        opts = cls.options_type(**options)
-        if opts.checkpoint is not None:
-            raise ValueError(f"{cls.kind}: a tracker on a given network takes no checkpoint")
-        self = cls.__new__(cls)
-        self._start(model, opts)
-        return self
+    load = staticmethod(load_siamrpn)
 
     def _start(self, model: torch.nn.Module, opts) -> None:
         self.opts, self.model = opts, model
@@ -97,23 +74,17 @@ class RPNTracker(Tracker):
         hann = np.outer(np.hanning(r), np.hanning(r))
         self.window = np.tile(hann.ravel(), len(cfg.ratios))
         self.cached = None
-        self._macs: dict | None = None
+        self._macs: tuple[dict, dict] | None = None
 
     @classmethod
     def frame_problem(cls, width: int, height: int) -> str | None:
         """Why this tracker cannot take frames of width x height px, or None (checked before a run)."""
-        return sensor_problem(cls.kind, width, height)
-
-    def _frame(self, segment: Segment) -> np.ndarray:
-        window = max(1, int(segment.t1_us) - int(segment.t0_us))
-        return atsltd_frame(segment.events, self.wh[0], self.wh[1], window).astype(np.float32) / 255.0
+        return sensor_problem(cls.name, width, height)
 
     def init(self, segment: Segment, box_xywh: np.ndarray, width: int, height: int) -> None:
         """Template kernels from the init segment's frame around box_xywh (pixels)."""
-        box = np.asarray(box_xywh, np.float64).reshape(4)
-        if not np.all(np.isfinite(box)) or box[2] <= 0 or box[3] <= 0:
-            raise ValueError(f"{self.kind}: cannot initialise on an absent or empty box {box.tolist()}")
-        self.wh = check_sensor(self.kind, width, height)
+        box = self._checked_box(box_xywh)
+        self.wh = check_sensor(self.name, width, height)
         self.centre, self.size = box[:2] + box[2:] / 2, box[2:].copy()
         z = crop(self._frame(segment), tuple(self.centre), exemplar_extent(self.size), self.model.cfg.exemplar_size)
         with torch.no_grad():
@@ -130,7 +101,7 @@ class RPNTracker(Tracker):
         """Move the state by the selected proposal of one search crop's outputs; returns its flat index."""
         score = torch.softmax(scores[0], dim=0)[1].reshape(-1).numpy().astype(np.float64)
         boxes = decode(offsets[0].reshape(4, -1).numpy(), self.anchors)
-        best, penalty = select(score, boxes, self.size * scale, self.window, self.opts.penalty_k,
+        best, penalty = select(score, boxes[2:], self.size * scale, self.window, self.opts.penalty_k,
                                self.opts.window_influence)
         found = boxes[:, best] / scale
         lr = penalty[best] * score[best] * self.opts.lr
@@ -145,7 +116,7 @@ class RPNTracker(Tracker):
     def update(self, segment: Segment) -> np.ndarray:
         """The box (xywh pixels) at the end of this segment."""
         if self.cached is None:
-            raise RuntimeError(f"{self.kind}: update() before init()")
+            raise RuntimeError(f"{self.name}: update() before init()")
         x, scale = self.search(segment)
         with torch.no_grad():
             scores, offsets = self.model.track(self.cached, x)
@@ -172,7 +143,7 @@ class RPNTracker(Tracker):
     def _counts(self) -> tuple[dict, dict]:
         """(update, init) operations, counted once: MACs, the pJ they cost (4.6 pJ a MAC) and ReLU activations."""
         if self._macs is None:
-            from sctn.energy import E_MAC_PJ, count_activations
+            from sctn.energy import count_activations
 
             m, cfg = self.frame_macs(), self.model.cfg
             z = torch.zeros(1, 1, cfg.exemplar_size, cfg.exemplar_size)
@@ -180,19 +151,8 @@ class RPNTracker(Tracker):
                 cached = self.model.template(z)
             acts = count_activations(lambda xs: self.network_pass(cached, xs),
                                      torch.zeros(1, 1, cfg.search_size, cfg.search_size))
-            self._macs = ({"ac_ops": 0.0, "mac_ops": m["mac_ops"], "energy_pj": m["mac_ops"] * E_MAC_PJ,
-                           "state_updates": 0.0, "activations": acts, "evaluations": 1},
-                          {"ac_ops": 0.0, "mac_ops": m["init_mac_ops"], "energy_pj": m["init_mac_ops"] * E_MAC_PJ,
-                           "state_updates": 0.0, "activations": count_activations(self.model.template, z)})
+            self._macs = dense_counts(m["mac_ops"], acts, m["init_mac_ops"], count_activations(self.model.template, z))
         return self._macs
-
-    def energy_per_segment(self) -> dict | None:
-        """MACs and pJ of one update: dense, the same for every frame."""
-        return self._counts()[0]
-
-    def energy_per_init(self) -> dict | None:
-        """MACs and pJ of one init: the template's kernels."""
-        return self._counts()[1]
 
 
 @register("siamrpn")

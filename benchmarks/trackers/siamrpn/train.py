@@ -17,25 +17,17 @@ import torch
 from pydantic import Field
 from torch.nn import functional as F
 
-from benchmarks.trackers.pair_training import pools_of, train_pairs
+from benchmarks.trackers.pair_training import PairTrainConfig, load_pairs, train_pairs
 from benchmarks.trackers.siamfc.train import Frames, load_frames, partner
 from benchmarks.trackers.siamrpn.anchors import decode, make_anchors, targets
 from benchmarks.trackers.siamrpn.crops import search_crop, search_window, template_crop
 from benchmarks.trackers.siamrpn.model import TOTAL_STRIDE, SiamRPN, SiamRPNConfig
-from dvsot.core.bounds import MAX_LEARNING_RATE
-from sctn.training.loop import TrainBudget
 
 
-class SiamRPNTrainConfig(TrainBudget):
-    """SiamRPN training settings: TrainBudget's with these defaults, the pairs' gap and augmentation, the anchors'
-    IoU thresholds, the regression's weight and the network."""
+class SiamRPNTrainConfig(PairTrainConfig):
+    """SiamRPN training settings: PairTrainConfig's with SiamRPN's stretch, the anchors' IoU thresholds, the
+    regression's weight and the network."""
 
-    epochs: int = Field(20, ge=1)
-    segments_per_epoch: int | None = Field(400, ge=1)
-    batch_segments: int = Field(8, ge=1)
-    lr: float = Field(1e-3, gt=0, le=MAX_LEARNING_RATE)
-    max_gap: int = Field(100, ge=1)
-    shift_px: float = Field(32.0, ge=0)
     stretch: float = Field(0.1, ge=0, lt=1)
     pos_iou: float = Field(0.6, gt=0, le=1)
     neg_iou: float = Field(0.3, ge=0, le=1)
@@ -73,6 +65,14 @@ def best_boxes(scores: torch.Tensor, offsets: torch.Tensor, anchors: np.ndarray)
     return decode(d, anchors.reshape(4, -1)[:, best]).T
 
 
+def box_figures(scores: torch.Tensor, offsets: torch.Tensor, anchors: np.ndarray, boxes: np.ndarray) -> dict:
+    """Mean centre error (crop px) and IoU of each map's top-scoring anchor's refined box against the target boxes
+    (B, 4) (cx, cy, w, h crop px from the centre)."""
+    found = best_boxes(scores, offsets, anchors)
+    err = np.hypot(*(found[:, :2] - boxes[:, :2]).T)
+    return {"centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, boxes).mean())}
+
+
 def box_iou_cxcywh(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """IoU (B,) of boxes a and b (B, 4), both (cx, cy, w, h)."""
     lo = np.maximum(a[:, :2] - a[:, 2:] / 2, b[:, :2] - b[:, 2:] / 2)
@@ -87,10 +87,7 @@ def train_siamrpn(files: list[Path], cfg: SiamRPNTrainConfig, progress: bool = T
     """Train a new SiamRPN on the given dataset files; returns the model and a history of metrics (validation:
     loss, centre error px and IoU of the top-scoring anchor's refined box in the search crop)."""
     torch.manual_seed(cfg.seed)
-    seqs = [load_frames(f, cfg.min_box_px) for f in files]
-    n_train = len(seqs)
-    seqs += [load_frames(f, cfg.min_box_px) for f in (val_files or [])]
-    pools = pools_of(seqs, n_train, bool(val_files))
+    seqs, n_train, pools = load_pairs(load_frames, files, val_files, cfg.min_box_px)
     net = cfg.network
     anchors = make_anchors(net.score_size(), TOTAL_STRIDE, net.ratios, net.anchor_scale)
 
@@ -113,12 +110,10 @@ def train_siamrpn(files: list[Path], cfg: SiamRPNTrainConfig, progress: bool = T
         with torch.no_grad():
             scores, offsets = model(b[0], b[1])
             value = float(rpn_loss(scores, offsets, b[2], b[3], cfg.reg_weight))
-        found = best_boxes(scores, offsets, anchors)
-        err = np.hypot(*(found[:, :2] - b[4][:, :2]).T)
-        return {"loss": value, "centre_error_px": float(err.mean()), "iou": float(box_iou_cxcywh(found, b[4]).mean())}
+        return {"loss": value, **box_figures(scores, offsets, anchors, b[4])}
 
     model, history = train_pairs(
-        "siamrpn", SiamRPN(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
+        "siamrpn", lambda: SiamRPN(net), seqs, n_train, val_files, cfg, batch, loss, evaluate,
         lambda m: f"val loss {m['loss']:.4f} centre error {m['centre_error_px']:.1f} px iou {m['iou']:.2f}",
         progress, val_score)
     return model, history

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from synthetic import moving_square_file
+from synthetic import small_square_file
 
 import benchmarks
 from benchmarks.training import registry
@@ -24,18 +24,13 @@ TINY_FLAGS = ["--epochs", "1", "--segments-per-epoch", "2", "--batch-segments", 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     """A small labelled dataset file (64x48, 60 ms)."""
-    d = tmp_path_factory.mktemp("train_model_data")
-    return moving_square_file(d / "syn.h5", width=64, height=48, size=12, duration_ms=60,
-                              velocity_px_s=(100.0, 40.0), start=(10.0, 10.0))
+    return small_square_file(tmp_path_factory.mktemp("train_model_data"))
 
 
 @pytest.fixture
-def no_training(monkeypatch):
+def no_training(refuse_calls):
     """Fail the test if any model's training starts: every refusal comes before any work."""
-    def boom(*args, **kwargs):
-        raise AssertionError("training started")
-    for name in ("sctn.training.snn.train", "sctn.ann.train_twin", "benchmarks.trackers.siamfc.train.train_siamfc"):
-        monkeypatch.setattr(name, boom)
+    refuse_calls("sctn.training.snn.train", "sctn.ann.train_twin", "benchmarks.trackers.siamfc.train.train_siamfc")
 
 
 def names(message: str, word: str) -> bool:
