@@ -41,14 +41,14 @@ def shipped() -> list[tuple[Path, str]]:
 
     return [(default_checkpoint_path(), "sctn"), (shipped_checkpoint_path("varied"), "sctn"),
             (default_twin_path(), "sctn_ann"), (default_siamfc_path(), "siamfc"),
-            *[(default_path(k), k) for k in ("siamrpn", "siammask", "ocean", "automatch")]]
+            *[(default_path(k), k) for k in ("goturn", "siamrpn", "siammask", "ocean", "automatch")]]
 
 
 # the shipped SiamFC was written before digests: its .json holds the digest of its unchanged weights; the others
 # were written with the digest in the .pt itself
 DIGEST_IN_PT = {"sctn_dvsot21.pt": True, "sctn_dvsot21_varied.pt": True, "sctn_ann_dvsot21.pt": True,
                 "siamfc_dvsot21.pt": False, "siamrpn_dvsot21.pt": True, "siammask_dvsot21.pt": True,
-                "ocean_dvsot21.pt": True, "automatch_dvsot21.pt": True}
+                "ocean_dvsot21.pt": True, "automatch_dvsot21.pt": True, "goturn_dvsot21.pt": True}
 
 
 def bench_refuses(tmp_path, capsys, ckpt: Path, words: list[str]) -> None:
