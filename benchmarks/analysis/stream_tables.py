@@ -21,6 +21,7 @@ from benchmarks.evaluation.latency import FREE
 from benchmarks.evaluation.metrics import ALL
 from benchmarks.evaluation.ope import PRECISION_PX
 from benchmarks.evaluation.safe_names import file_stem, markdown_cell
+from benchmarks.evaluation.stream_summary import PREDICTIVE
 
 STREAM_FILES = ("stream.json", "stream.md")
 SCALE_PLOT = "latency_scale.png"
@@ -77,32 +78,48 @@ def format_stream(summary: dict) -> str:
 
 
 def scale_figure(summary: dict):
-    """The figure of latency_scale.png: per row the pooled ARscore against the latency scale factor (log axis), its
-    latency-free score dashed, and a cross where it falls to half that score (the factor in the legend)."""
+    """The figure of latency_scale.png: per row the pooled ARscore against the latency scale factor (log axis), a
+    cross where it falls to half its latency-free score (the factor in the legend), that score dotted; a tracker's
+    predictive row shares its colour, dashed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FixedLocator, NullLocator, ScalarFormatter
 
     from benchmarks.evaluation.safe_names import plot_text
 
-    fig, ax = plt.subplots(figsize=(5, 4))
+    curves = summary["scale_curves"]
+    trackers = list(dict.fromkeys(row.removesuffix(PREDICTIVE) for row in curves))
+    palette = plt.get_cmap("tab10" if len(trackers) <= 10 else "tab20")
+    colour = {t: palette(i % palette.N) for i, t in enumerate(trackers)}
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
     halves = summary.get("half_factor", {})
-    for row, curve in summary["scale_curves"].items():
+    factors: set[float] = set()
+    for row, curve in curves.items():
         f, s = zip(*curve)
+        factors.update(f)
+        tracker = row.removesuffix(PREDICTIVE)
+        predictive = row != tracker
         h = halves.get(row)
         label = plot_text(row) + (f" (half at x{half_text(h, curve)})" if h and h["reached"] else
                                   f" (half {half_text(h, curve)})" if h else "")
-        line, = ax.plot(f, s, marker="o", label=label)
-        ax.axhline(summary["rows"][row][FREE][ALL]["ARscore"], color=line.get_color(), ls="--", lw=0.8)
+        ax.plot(f, s, marker="s" if predictive else "o", ms=4, ls="--" if predictive else "-", lw=1.2,
+                color=colour[tracker], label=label)
+        if not predictive:
+            ax.axhline(summary["rows"][row][FREE][ALL]["ARscore"], color=colour[tracker], ls=":", lw=0.8)
         if h and h["reached"]:
-            ax.plot([h["factor"]], [h["half_score"]], marker="x", ms=9, mew=2, ls="none", color=line.get_color())
-    ax.set_xscale("log")
+            ax.plot([h["factor"]], [h["half_score"]], marker="x", ms=9, mew=2, ls="none", color=colour[tracker])
+    ax.set_xscale("log", base=2)
+    ax.xaxis.set_major_locator(FixedLocator(sorted(factors)))
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_locator(NullLocator())
     ax.set_xlabel("latency scale factor (x measured)")
     ax.set_ylabel("streaming ARscore")
     ax.set_ylim(0, 1.02)
-    ax.set_title("score against latency (dashed: latency-free;\nx: half the latency-free score)", fontsize=10)
-    ax.legend(fontsize=8)
+    ax.set_title("score against latency (dotted: latency-free; x: half the latency-free score;\n"
+                 "dashed: predictive)", fontsize=10)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
     ax.grid(alpha=0.3)
     return fig
 

@@ -43,3 +43,20 @@ def test_the_plot_marks_each_half_point_and_names_its_factor():
         assert labels == ["fast (half at x3)", "slow (half not reached up to 8)"]
     finally:
         plt.close(fig)
+
+
+def test_a_predictive_row_shares_its_trackers_colour_dashed_and_the_axis_names_the_factors():
+    s = summary()
+    s["scale_curves"]["fast (predictive)"] = [(1.0, 0.7), (2.0, 0.65), (4.0, 0.5)]
+    s["rows"]["fast (predictive)"] = s["rows"]["fast"]
+    s["half_factor"]["fast (predictive)"] = half_factor(s["scale_curves"]["fast (predictive)"], 0.8)
+    fig = scale_figure(s)
+    try:
+        ax = fig.axes[0]
+        curves = {ln.get_label(): ln for ln in ax.lines if not ln.get_label().startswith("_")}
+        plain, pred = curves["fast (half at x3)"], curves["fast (predictive) (half not reached up to 4)"]
+        assert plain.get_color() == pred.get_color() != curves["slow (half not reached up to 8)"].get_color()
+        assert plain.get_linestyle() == "-" and pred.get_linestyle() == "--"
+        assert [t for t in ax.get_xticks()] == pytest.approx([1.0, 2.0, 4.0, 8.0])
+    finally:
+        plt.close(fig)
