@@ -95,6 +95,16 @@ def _check_registries(args: argparse.Namespace, line: str) -> None:
 
     for name in getattr(args, "tracker", None) or []:
         assert name in available_trackers(), f"README: {line}: unknown tracker {name!r}"
+    if getattr(args, "protocol", None) == "stream":  # latency models against the trackers, as the run checks them
+        from benchmarks.bench.stream_options import check_stream
+        from dvsot.core.errors import UserError
+
+        stream = {"latency": args.latency, "query_hz": args.query_hz, "window": args.stream_window,
+                  "predictive": args.predictive}
+        try:
+            check_stream("stream", stream, args.tracker or [], [])
+        except UserError as exc:
+            pytest.fail(f"README: {line}: {exc}")
     for spec in getattr(args, "option", None) or []:
         tracker, _, rest = spec.partition(".")
         key, _, value = rest.partition("=")
@@ -190,6 +200,7 @@ def test_every_bash_line_runs_or_passes_its_parser(demo_dir, monkeypatch, capsys
     ("dvsot bench --tracker no_such_tracker", "unknown tracker"),
     ("dvsot bench --tracker sctn --option sctn.no_such_key=1", "no_such_key"),
     ("dvsot bench --tracker sctn --option sctn.reinit=onlin", "reinit"),
+    ("dvsot bench --tracker rct --protocol stream --latency declared:cpu", "no latency under it"),
     ("dvsot train --model no_such_model -o runs/x.pt", "refused by its parser"),
 ])
 def test_a_bad_line_fails_the_check(line, problem, capsys):
