@@ -14,6 +14,7 @@ operation counts of a dense network.
 from __future__ import annotations
 
 import os
+from abc import abstractmethod
 from collections.abc import Callable
 from pathlib import Path
 
@@ -107,9 +108,9 @@ class NetworkTracker(Tracker):
     operations = ("mac_ops", "activations")  # energy_per_segment's counts, timed by a declared latency
 
     @staticmethod
+    @abstractmethod
     def load(path: str | None) -> tuple[torch.nn.Module, dict]:
         """The network and metadata of a checkpoint of this tracker's model (the subclass's loader)."""
-        raise NotImplementedError
 
     def __init__(self, **options) -> None:
         opts = self.options_type(**options)
@@ -126,8 +127,9 @@ class NetworkTracker(Tracker):
         self._start(model, opts)
         return self
 
+    @abstractmethod
     def _start(self, model: torch.nn.Module, opts) -> None:
-        raise NotImplementedError
+        """Hold the network and the options; reset the tracking state."""
 
     def _frame(self, segment: Segment) -> np.ndarray:
         """The segment's ATSLTD frame (height, width) float32 in [0, 1] on the sensor set by init (self.wh)."""
@@ -141,8 +143,9 @@ class NetworkTracker(Tracker):
             raise ValueError(f"{self.name}: cannot initialise on an absent or empty box {box.tolist()}")
         return box
 
+    @abstractmethod
     def _counts(self) -> tuple[dict, dict]:
-        raise NotImplementedError
+        """Operations of one update and of one initialisation (energy_per_segment's and energy_per_init's dicts)."""
 
     def energy_per_segment(self) -> dict | None:
         """MACs, pJ (4.6 pJ a MAC) and ReLU activations of one update: dense, the same for every frame."""
